@@ -1,0 +1,254 @@
+"""The ``ccm`` command: ``ccm run [overrides]``, ``ccm run -m …``, ``ccm list``, ``ccm --help``.
+
+``ccm run`` hands its arguments to a Hydra app (``version_base="1.3"``). Before Hydra creates a
+run directory, every override combination is composed and every component built once, so a
+bad override ends with one line naming the key and what is allowed, and exit code 2.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import ccm
+
+GROUPS = ("sim", "controller", "task", "experiment")
+EXIT_CONFIG = 2
+EXIT_FAILED = 1
+
+HELP = """\
+usage: ccm <command> [args]
+
+commands:
+  run [OVERRIDES]       run an experiment (Hydra overrides, e.g. experiment=smoke seed=3)
+  run -m [OVERRIDES]    multirun sweep, e.g. ccm run -m experiment=smoke seed=0,1,2
+  list                  the experiments, tasks, controllers and sims the config groups offer
+  --help, -h            this message; `ccm run --help` shows Hydra's help and the config
+  --version             print the version
+
+Outputs go to ./outputs/<experiment>/<timestamp>/ (sweeps: ./multirun/…), relative to the
+current directory: .hydra/, timeseries/, figures/*.png, run_info.json, summary.json (last).
+Set HYDRA_FULL_ERROR=1 (or pass --verbose to `run`) for full tracebacks.
+"""
+
+
+def config_dir() -> Path:
+    """The config directory: shipped in the wheel as ``ccm/_configs``, or ``configs/`` in a
+    source checkout (editable install)."""
+    pkg = Path(ccm.__file__).resolve().parent
+    for candidate in (pkg / "_configs", pkg.parent / "configs"):
+        if (candidate / "config.yaml").is_file():
+            return candidate
+    raise FileNotFoundError(f"ccm configs not found next to {pkg}")
+
+
+def group_options(group: str) -> list[str]:
+    """Option names of a config group (its YAML files)."""
+    return sorted(p.stem for p in (config_dir() / group).glob("*.yaml"))
+
+
+def describe(group: str, option: str) -> str:
+    """The ``description`` field of a group option, or its first comment line."""
+    from omegaconf import OmegaConf
+
+    path = config_dir() / group / f"{option}.yaml"
+    node = OmegaConf.load(path)
+    desc = OmegaConf.select(node, "description", default=None)
+    if desc is None:
+        desc = OmegaConf.select(node, f"{group}.description", default=None)
+    if desc is None:
+        for line in path.read_text(encoding="utf-8").splitlines():
+            if line.startswith("#") and "@package" not in line:
+                return line.lstrip("# ").strip()
+    return str(desc or "")
+
+
+def cmd_list() -> int:
+    for group in ("experiment", "task", "controller", "sim"):
+        print(f"{group}:")
+        for opt in group_options(group):
+            print(f"  {opt:<28} {describe(group, opt)}")
+    return 0
+
+
+def _fail(message: str, code: int) -> int:
+    print(f"ccm: error: {message}", file=sys.stderr)
+    return code
+
+
+def _combos(overrides: Sequence[str], multirun: bool) -> list[list[str]]:
+    """Override lists to pre-check: the base combination, then each sweep value in turn."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    parsed = OverridesParser.create().parse_overrides(list(overrides))
+    base: list[str] = []
+    variants: list[tuple[int, list[str]]] = []
+    for i, ov in enumerate(parsed):
+        if ov.key_or_group.startswith("hydra"):
+            base.append("")
+            continue
+        if ov.is_sweep_override():
+            if not multirun:
+                raise ValueError(f"{ov.input_line}: sweeps need `ccm run -m`")
+            prefix = ov.input_line.split(ov.key_or_group, 1)[0]
+            values = [f"{prefix}{ov.get_key_element()}={v}" for v in ov.sweep_string_iterator()]
+            base.append(values[0])
+            variants.append((i, values[1:]))
+        else:
+            base.append(ov.input_line)
+    combos = [[o for o in base if o]]
+    for i, values in variants:
+        for v in values:
+            c = list(base)
+            c[i] = v
+            combos.append([o for o in c if o])
+    return combos
+
+
+def _check_groups(overrides: Sequence[str]) -> str | None:
+    for ov in overrides:
+        key, _, value = ov.lstrip("+~").partition("=")
+        if key in GROUPS and value not in group_options(key):
+            return f"{key}={value}: unknown option; allowed: {', '.join(group_options(key))}"
+    return None
+
+
+def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
+    """Compose each override combination and build its components; return an error line."""
+    from hydra import compose, initialize_config_dir
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from ccm.errors import ConfigError
+    from ccm.runner import build_components, check_experiment, resolve_conditions
+
+    try:
+        combos = _combos(overrides, multirun)
+    except (HydraException, ValueError) as exc:
+        return _one_line(exc)
+    with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="ccm"):
+        for combo in combos:
+            bad = _check_groups(combo)
+            if bad:
+                return bad
+            try:
+                cfg = compose("config", overrides=combo)
+                check_experiment(cfg)
+                conds = resolve_conditions(cfg, lambda x, c=combo: _compose_extra(c, x))
+                for cond in conds:
+                    build_components(cond.cfg)
+            except ConfigError as exc:
+                return str(exc)
+            except (HydraException, OmegaConfBaseException, ValueError, TypeError) as exc:
+                return _one_line(exc)
+    return None
+
+
+def _compose_extra(base: Sequence[str], extra: Sequence[str]):  # noqa: ANN202
+    from hydra import compose
+
+    bad = _check_groups(extra)
+    if bad:
+        from ccm.errors import ConfigError
+
+        key, _, _ = bad.partition(":")
+        raise ConfigError(f"experiment.conditions ({key})", bad.split(": ", 1)[1])
+    return compose("config", overrides=[*base, *extra])
+
+
+def _one_line(exc: BaseException) -> str:
+    """A single line from a Hydra/OmegaConf exception message."""
+    text = " ".join(str(exc).split())
+    if "is not in struct" in text or "Could not override" in text:
+        key = text.split("'")[1] if "'" in text else text
+        return f"{key}: unknown key (see `ccm run --cfg job` for the keys; `+{key}=…` adds one)"
+    return text.split(". ", 1)[0] if len(text) > 300 else text
+
+
+def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's signature check
+    """The Hydra task function: run the experiment, or record the failure and exit non-zero."""
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    from ccm.errors import ConfigError, SimulationDiverged
+    from ccm.records import write_json_atomic
+    from ccm.runner import failed_summary, run_experiment
+
+    hc = HydraConfig.get()
+    out_dir = Path(hc.runtime.output_dir)
+    task_overrides = list(hc.overrides.task)
+    try:
+        summary = run_experiment(cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir)
+    except Exception as exc:
+        expected = isinstance(exc, ConfigError | SimulationDiverged)
+        message = str(exc) if expected else f"{type(exc).__name__}: {exc}"
+        write_json_atomic(out_dir / "summary.json", failed_summary(cfg, message))
+        if not expected and os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        print(f"ccm: run failed: {message} [{out_dir}]", file=sys.stderr)
+        if hc.mode == RunMode.MULTIRUN:
+            raise RunFailed(message) from None
+        sys.exit(EXIT_FAILED)
+    _print_summary(summary, out_dir)
+
+
+class RunFailed(RuntimeError):
+    """A job of a sweep failed; Hydra finishes the sweep and then exits non-zero."""
+
+
+def _print_summary(summary: dict, out_dir: Path) -> None:
+    print(f"ccm: {summary['experiment']} {summary['status']} -> {out_dir}")
+    for name, metrics in summary["conditions"].items():
+        parts = [f"{k}={v:.4g}" for k, v in metrics.items() if isinstance(v, float) and k in _SHOWN]
+        print(f"  {name:<20} " + "  ".join(parts))
+
+
+_SHOWN = ("rms_tracking_error_m", "peak_force_N", "mean_stiffness_Npm", "completion_time_s")
+
+
+def cmd_run(args: Sequence[str]) -> int:
+    import hydra
+
+    args = list(args)
+    if "--verbose" in args:
+        args.remove("--verbose")
+        os.environ["HYDRA_FULL_ERROR"] = "1"
+    multirun = "-m" in args or "--multirun" in args
+    flags = {"-m", "--multirun"}
+    info_flags = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve"}
+    overrides = [a for a in args if not a.startswith("-") and a not in flags]
+    if not (set(args) & info_flags):
+        err = precheck(overrides, multirun)
+        if err:
+            return _fail(err, EXIT_CONFIG)
+
+    app = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_job)
+    saved = sys.argv
+    sys.argv = ["ccm run", *args]
+    try:
+        app()
+    finally:
+        sys.argv = saved
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``ccm`` console script."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(HELP, end="")
+        return 0 if argv else EXIT_CONFIG
+    if argv[0] == "--version":
+        print(f"ccm {ccm.__version__}")
+        return 0
+    if argv[0] == "list":
+        return cmd_list()
+    if argv[0] == "run":
+        return cmd_run(argv[1:])
+    return _fail(f"unknown command {argv[0]!r}; allowed: run, list, --help", EXIT_CONFIG)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Controllers: ``(Observation, TargetSample) -> Command`` with loggable internal signals."""

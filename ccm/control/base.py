@@ -1,0 +1,35 @@
+"""Controller interface: state in, command out, gains as parameters (polymetis style)."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+from ccm.types import Command, Observation, TargetSample
+
+
+class Controller(ABC):
+    """Maps ``(Observation, TargetSample) -> Command``.
+
+    A controller never sees a simulator handle or ground truth: only the ``Observation``
+    (pose, twist, measured wrench, time) and the target pattern sample. Controllers that
+    learn across trials override :meth:`end_trial`.
+    """
+
+    def reset(self, dim: int, control_dt: float) -> None:
+        """Prepare for a new trial in a ``dim``-dimensional task space at period ``control_dt``."""
+        self.dim = dim
+        self.control_dt = control_dt
+
+    @abstractmethod
+    def step(self, obs: Observation, target: TargetSample) -> Command:
+        """Compute the task-space wrench command for this control step."""
+
+    @abstractmethod
+    def signals(self) -> dict[str, float]:
+        """Internal signals of the last step for logging (stiffness, damping, mode, …).
+
+        Keys carry units (``stiffness_Npm``); the set of keys is fixed for a controller.
+        """
+
+    def end_trial(self) -> None:  # noqa: B027 - optional hook
+        """Called after each trial; learning controllers update cross-trial state here."""

@@ -1,0 +1,20 @@
+"""Controller registry: the ``type`` field of a ``controller`` config picks the class."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from ccm.control.base import Controller
+from ccm.control.impedance import FixedImpedance
+from ccm.errors import check_choice
+
+CONTROLLERS: dict[str, type[Controller]] = {
+    "fixed_impedance": FixedImpedance,
+}
+
+
+def make_controller(cfg: Mapping[str, Any], key: str = "controller") -> Controller:
+    """Build a controller from a plain config mapping with a ``type`` field."""
+    kind = check_choice(f"{key}.type", cfg.get("type"), CONTROLLERS)
+    return CONTROLLERS[kind].from_config(cfg, key=key)  # type: ignore[attr-defined]

@@ -1,0 +1,117 @@
+"""User-facing errors and input checks.
+
+Every check names the configuration key it guards and the allowed range, so the CLI can
+print one line and exit non-zero (DESIGN.md, "Errors a user can cause").
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+
+class ConfigError(ValueError):
+    """A configuration value the user can fix. ``str(err)`` is a single line."""
+
+    def __init__(self, key: str, problem: str) -> None:
+        self.key = key
+        self.problem = problem
+        super().__init__(f"{key}: {problem}")
+
+
+class SimulationDiverged(RuntimeError):
+    """The simulation produced NaN/inf or a runaway state; the run is marked failed."""
+
+
+def _as_float(key: str, value: Any) -> float:
+    if isinstance(value, bool):
+        raise ConfigError(key, f"must be a number, got {value!r}")
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(key, f"must be a number, got {value!r}") from None
+    if not math.isfinite(out):
+        raise ConfigError(key, f"must be a finite number, got {value!r}")
+    return out
+
+
+def check_finite(key: str, value: Any) -> float:
+    """Return ``value`` as a float; reject NaN, inf and non-numbers."""
+    return _as_float(key, value)
+
+
+def check_positive(key: str, value: Any) -> float:
+    """Return ``value`` as a float; it must be finite and > 0."""
+    out = _as_float(key, value)
+    if out <= 0.0:
+        raise ConfigError(key, f"must be > 0, got {value!r}")
+    return out
+
+
+def check_nonneg(key: str, value: Any) -> float:
+    """Return ``value`` as a float; it must be finite and >= 0."""
+    out = _as_float(key, value)
+    if out < 0.0:
+        raise ConfigError(key, f"must be >= 0, got {value!r}")
+    return out
+
+
+def check_range(key: str, value: Any, lo: float, hi: float) -> float:
+    """Return ``value`` as a float; it must lie in the closed interval [lo, hi]."""
+    out = _as_float(key, value)
+    if not lo <= out <= hi:
+        raise ConfigError(key, f"must be in [{lo}, {hi}], got {value!r}")
+    return out
+
+
+def check_int_positive(key: str, value: Any) -> int:
+    """Return ``value`` as an int >= 1."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise ConfigError(key, f"must be an integer >= 1, got {value!r}")
+    if value < 1:
+        raise ConfigError(key, f"must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
+def check_choice(key: str, value: Any, allowed: Iterable[str]) -> str:
+    """Return ``value`` if it is one of ``allowed``."""
+    options = list(allowed)
+    if value not in options:
+        raise ConfigError(key, f"unknown value {value!r}; allowed: {', '.join(options)}")
+    return str(value)
+
+
+def check_vector(key: str, value: Any, dim: int | Sequence[int]) -> np.ndarray:
+    """Return ``value`` as a finite float vector whose length is ``dim`` (or one of them)."""
+    dims = (dim,) if isinstance(dim, int) else tuple(dim)
+    try:
+        arr = np.asarray(list(value), dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(key, f"must be a list of {dims} numbers, got {value!r}") from None
+    if arr.ndim != 1 or arr.shape[0] not in dims:
+        raise ConfigError(key, f"must have length {' or '.join(map(str, dims))}, got {value!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ConfigError(key, f"must be finite, got {value!r}")
+    return arr
+
+
+def constructor_kwargs(cls: type, cfg: Any, key: str) -> dict[str, Any]:
+    """Keyword arguments for ``cls(...)`` from a config mapping, rejecting unknown keys.
+
+    ``type`` and ``description`` are bookkeeping fields of every component config and are
+    dropped; ``key`` is reserved for the error prefix.
+    """
+    import inspect
+
+    allowed = [p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "key")]
+    out: dict[str, Any] = {}
+    for name, value in dict(cfg).items():
+        if name in ("type", "description"):
+            continue
+        if name not in allowed:
+            raise ConfigError(f"{key}.{name}", f"unknown key; allowed: {', '.join(allowed)}")
+        out[name] = value
+    return out

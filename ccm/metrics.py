@@ -1,0 +1,124 @@
+"""Per-trial metrics from a trial log (DESIGN.md summary.json contract; names carry units)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ccm.errors import check_positive
+
+#: metrics every trial reports (issue #2)
+BASE_METRICS = (
+    "rms_tracking_error_m",
+    "max_tracking_error_m",
+    "peak_force_N",
+    "peak_acc_mps2",
+    "rms_jerk_mps3",
+    "completion_time_s",
+    "mean_stiffness_Npm",
+)
+
+
+def lowpass(x: np.ndarray, dt: float, cutoff_hz: float) -> np.ndarray:
+    """Causal first-order low-pass along axis 0: y_k = y_{k-1} + α (x_k − y_{k-1}).
+
+    α = dt / (dt + 1/(2π f_c)). One documented filter, used for every condition, stands in for
+    the velocity filtering a robot applies to encoder-derived velocities.
+    """
+    alpha = dt / (dt + 1.0 / (2.0 * math.pi * cutoff_hz))
+    y = np.empty_like(x, dtype=float)
+    if len(x) == 0:
+        return y
+    y[0] = x[0]
+    for k in range(1, len(x)):
+        y[k] = y[k - 1] + alpha * (x[k] - y[k - 1])
+    return y
+
+
+def derivatives(vel: np.ndarray, dt: float, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Acceleration and jerk from a velocity series: low-pass velocity, then finite differences.
+
+    Args:
+        vel: (T, n) velocities [m/s] sampled every ``dt``.
+        cutoff_hz: low-pass cut-off applied to velocity and again to acceleration.
+
+    Returns:
+        acc (T, n) [m/s²] and jerk (T, n) [m/s³]; the first sample of each is 0.
+    """
+    v = lowpass(vel, dt, cutoff_hz)
+    acc = np.zeros_like(v)
+    acc[1:] = np.diff(v, axis=0) / dt
+    acc = lowpass(acc, dt, cutoff_hz)
+    jerk = np.zeros_like(acc)
+    jerk[1:] = np.diff(acc, axis=0) / dt
+    return acc, jerk
+
+
+def motion_error(position: np.ndarray, target: np.ndarray, force_dir: np.ndarray) -> np.ndarray:
+    """Tracking error [m] in the motion-controlled subspace, per sample.
+
+    Along a force-controlled direction d the position target is not tracked (Eq. 1's u_fc
+    regulates force there), so that component is removed: e = (I − d dᵀ)(x_d − x). Rows of
+    ``force_dir`` that are zero mean pure motion control.
+    """
+    err = target - position
+    along = np.sum(err * force_dir, axis=1, keepdims=True)
+    return np.linalg.norm(err - along * force_dir, axis=1)
+
+
+def trial_metrics(
+    log: Mapping[str, np.ndarray],
+    dim: int,
+    control_dt: float,
+    pattern_duration: float,
+    lowpass_hz: float,
+    completion_tol_m: float,
+) -> dict[str, float | None]:
+    """Compute the issue #2 metrics for one trial.
+
+    ``log`` holds arrays keyed like the time-series columns: ``t``, ``pos_*``, ``target_pos_*``,
+    ``vel_*``, ``force_dir_*``, ``true_force_*``, ``stiffness_Npm``.
+
+    * peak_force_N: max |true external force| (noise-free, ground truth — metrics may use it).
+    * peak_acc_mps2 / rms_jerk_mps3: from the measured velocity through :func:`derivatives`.
+    * completion_time_s: first time at or after the pattern's end when the motion error is
+      within ``completion_tol_m``; ``None`` if never reached during the trial.
+    """
+    check_positive("metrics.lowpass_hz", lowpass_hz)
+    axes = "xyz"[:dim]
+    t = log["t"]
+    pos = np.column_stack([log[f"pos_{a}"] for a in axes])
+    tgt = np.column_stack([log[f"target_pos_{a}"] for a in axes])
+    vel = np.column_stack([log[f"vel_{a}"] for a in axes])
+    fdir = np.column_stack([log[f"force_dir_{a}"] for a in axes])
+    f_true = np.column_stack([log[f"true_force_{a}"] for a in axes])
+    err = motion_error(pos, tgt, fdir)
+    acc, jerk = derivatives(vel, control_dt, lowpass_hz)
+    done = np.nonzero((t >= pattern_duration - 1e-12) & (err <= completion_tol_m))[0]
+    stiff = log.get("stiffness_Npm")
+    mean_stiff = (
+        float(np.nanmean(stiff)) if stiff is not None and np.any(np.isfinite(stiff)) else None
+    )
+    return {
+        "rms_tracking_error_m": float(np.sqrt(np.mean(err**2))),
+        "max_tracking_error_m": float(np.max(err)),
+        "peak_force_N": float(np.max(np.linalg.norm(f_true, axis=1))),
+        "peak_acc_mps2": float(np.max(np.linalg.norm(acc, axis=1))),
+        "rms_jerk_mps3": float(np.sqrt(np.mean(np.sum(jerk**2, axis=1)))),
+        "completion_time_s": float(t[done[0]]) if done.size else None,
+        "mean_stiffness_Npm": mean_stiff,
+    }
+
+
+def aggregate(trials: Sequence[Mapping[str, float | None]]) -> dict[str, float | None]:
+    """Mean of each metric over trials, skipping ``None``; ``None`` if no trial has a value."""
+    keys: list[str] = []
+    for tr in trials:
+        keys.extend(k for k in tr if k not in keys)
+    out: dict[str, float | None] = {}
+    for k in keys:
+        vals = [float(tr[k]) for tr in trials if isinstance(tr.get(k), int | float)]
+        out[k] = float(np.mean(vals)) if vals else None
+    return out

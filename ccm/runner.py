@@ -1,0 +1,252 @@
+"""Experiment runner: conditions × trials, seeded; writes the run directory.
+
+A condition is a list of Hydra overrides applied on top of the run's own overrides (e.g.
+``[controller=fixed_impedance_high]``), so every condition is a fully composed config.
+The runner never changes the working directory; ``summary.json`` is written last.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from ccm.control.base import Controller
+from ccm.control.registry import make_controller
+from ccm.errors import (
+    ConfigError,
+    SimulationDiverged,
+    check_int_positive,
+    check_nonneg,
+    check_positive,
+)
+from ccm.metrics import aggregate, trial_metrics
+from ccm.records import TrialRecorder, write_json_atomic
+from ccm.sim import make_sim
+from ccm.sim.base import Simulator, check_state_finite
+from ccm.tasks.task import Task, load_task
+
+#: compose(extra_overrides) -> config; provided by the CLI (Hydra compose API)
+ComposeFn = Callable[[Sequence[str]], DictConfig]
+
+_NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
+
+
+@dataclass
+class Condition:
+    """One experimental condition: a name and its fully composed config."""
+
+    name: str
+    cfg: DictConfig
+
+
+@dataclass
+class Components:
+    """Validated objects built from one condition's config."""
+
+    sim: Simulator
+    task: Task
+    controller: Controller
+
+
+def plain(node: Any) -> Any:
+    """OmegaConf node -> plain Python containers (interpolations resolved)."""
+    if isinstance(node, DictConfig) or OmegaConf.is_config(node):
+        return OmegaConf.to_container(node, resolve=True)
+    return node
+
+
+def resolve_conditions(cfg: DictConfig, compose: ComposeFn) -> list[Condition]:
+    """Expand ``experiment.conditions`` into composed configs (or the run config alone)."""
+    spec = cfg.experiment.get("conditions") or {}
+    if not spec:
+        return [Condition(name=str(cfg.controller.get("type", "default")), cfg=cfg)]
+    out = []
+    for name, overrides in plain(spec).items():
+        key = f"experiment.conditions.{name}"
+        if not _NAME_RE.match(str(name)):
+            raise ConfigError(key, "condition names may use letters, digits, '_', '-', '.'")
+        if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
+            raise ConfigError(key, "must be a list of override strings, e.g. [controller=x]")
+        out.append(Condition(name=str(name), cfg=compose(list(overrides))))
+    return out
+
+
+def build_components(cfg: DictConfig) -> Components:
+    """Build and validate simulator, task and controller from one composed config."""
+    sim = make_sim(plain(cfg.sim), plain(cfg.task.get("scene", {})), plain(cfg.task.get("start")))
+    task = load_task(cfg.task, sim.control_dt)
+    if task.dim != sim.dim:
+        raise ConfigError("task.dim", f"task is {task.dim}-D but sim={cfg.sim.name} is {sim.dim}-D")
+    controller = make_controller(plain(cfg.controller))
+    controller.reset(task.dim, sim.control_dt)  # validates dimension-dependent gains
+    return Components(sim=sim, task=task, controller=controller)
+
+
+def trial_seed(seed: int, trial: int) -> int:
+    """Seed for trial ``trial``; the same for every condition (paired comparisons)."""
+    return int(np.random.SeedSequence(entropy=seed, spawn_key=(trial,)).generate_state(1)[0])
+
+
+def check_experiment(cfg: DictConfig) -> dict[str, Any]:
+    """Validate the ``experiment`` and ``metrics`` groups; return the settings the loop uses."""
+    exp = cfg.experiment
+    fast = bool(exp.get("fast", False))
+    trials = check_int_positive("experiment.trials", exp.get("trials", 1))
+    max_time = exp.get("max_time_s")
+    if max_time is not None:
+        max_time = check_positive("experiment.max_time_s", max_time)
+    if fast:
+        trials = min(
+            trials, check_int_positive("experiment.fast_trials", exp.get("fast_trials", 1))
+        )
+        fast_time = check_positive("experiment.fast_time_s", exp.get("fast_time_s", 0.5))
+        max_time = fast_time if max_time is None else min(max_time, fast_time)
+    if not isinstance(cfg.get("seed"), int) or isinstance(cfg.get("seed"), bool):
+        raise ConfigError("seed", f"must be an integer, got {cfg.get('seed')!r}")
+    return {
+        "trials": trials,
+        "max_time_s": max_time,
+        "settle_time_s": check_nonneg("experiment.settle_time_s", exp.get("settle_time_s", 0.5)),
+        "lowpass_hz": check_positive("metrics.lowpass_hz", cfg.metrics.lowpass_hz),
+        "completion_tol_m": check_positive(
+            "metrics.completion_tol_m", cfg.metrics.completion_tol_m
+        ),
+        "figures": bool(exp.get("figures", True)),
+    }
+
+
+def run_trial(
+    comp: Components,
+    seed: int,
+    duration_s: float,
+    progress: Callable[[int], None] | None = None,
+) -> TrialRecorder:
+    """Run one trial: sample P, control, step the simulator, record. Raises on divergence."""
+    sim, task, ctrl = comp.sim, comp.task, comp.controller
+    obs, info = sim.reset(seed=seed)
+    ctrl.reset(task.dim, sim.control_dt)
+    n_steps = max(1, int(math.floor(duration_s / sim.control_dt + 1e-9)))
+    max_speed = float(getattr(sim, "max_speed", math.inf))
+    rec: TrialRecorder | None = None
+    tick = max(1, n_steps // 100)
+    for k in range(n_steps):
+        target = task.pattern.sample(obs.t)
+        cmd = ctrl.step(obs, target)
+        if rec is None:
+            rec = TrialRecorder(n_steps, task.dim, list(ctrl.signals()), sorted(info.extra))
+        rec.record(obs, target, cmd, info, ctrl.signals())
+        obs, info = sim.step(cmd)
+        reason = check_state_finite(obs, max_speed)
+        if reason is not None:
+            raise SimulationDiverged(reason)
+        if progress is not None and (k + 1) % tick == 0:
+            progress(tick)
+    assert rec is not None
+    return rec
+
+
+def run_experiment(
+    cfg: DictConfig,
+    compose: ComposeFn,
+    out_dir: Path,
+    show_progress: bool = True,
+) -> dict[str, Any]:
+    """Run every condition × trial of ``cfg.experiment`` and write the run directory.
+
+    Returns the summary dict (also written to ``out_dir/summary.json`` last).
+    """
+    settings = check_experiment(cfg)
+    conditions = resolve_conditions(cfg, compose)
+    built = [(c, build_components(c.cfg)) for c in conditions]  # validate all before running
+    durations = {}
+    for cond, comp in built:
+        d = comp.task.pattern.duration + settings["settle_time_s"]
+        if settings["max_time_s"] is not None:
+            d = min(d, settings["max_time_s"])
+        durations[cond.name] = d
+    total_steps = sum(
+        int(durations[c.name] / comp.sim.control_dt) * settings["trials"] for c, comp in built
+    )
+    bar = _progress_bar(total_steps, cfg.experiment.name, show_progress)
+    trials_out: list[dict[str, Any]] = []
+    logs: dict[str, list[dict[str, np.ndarray]]] = {}
+    wall0 = time.perf_counter()
+    try:
+        for cond, comp in built:
+            for trial in range(1, settings["trials"] + 1):
+                seed = trial_seed(int(cfg.seed), trial)
+                rec = run_trial(comp, seed, durations[cond.name], bar.update if bar else None)
+                ts_path = out_dir / "timeseries" / cond.name / f"trial_{trial:03d}.csv"
+                rec.write_csv(ts_path)
+                arrays = rec.arrays()
+                metrics = trial_metrics(
+                    arrays,
+                    comp.task.dim,
+                    comp.sim.control_dt,
+                    comp.task.pattern.duration,
+                    settings["lowpass_hz"],
+                    settings["completion_tol_m"],
+                )
+                trials_out.append({"condition": cond.name, "trial": trial, "seed": seed, **metrics})
+                logs.setdefault(cond.name, []).append({k: v.copy() for k, v in arrays.items()})
+                comp.controller.end_trial()
+            comp.sim.close()
+    finally:
+        if bar is not None:
+            bar.close()
+    wall = time.perf_counter() - wall0
+    if settings["figures"]:
+        from ccm.plots import write_figures
+
+        write_figures(out_dir / "figures", {c.name: comp for c, comp in built}, logs, settings)
+    summary = {
+        "experiment": str(cfg.experiment.name),
+        "status": "ok",
+        "seed": int(cfg.seed),
+        "conditions": {
+            c.name: aggregate(
+                [
+                    {k: v for k, v in t.items() if k not in ("condition", "trial", "seed")}
+                    for t in trials_out
+                    if t["condition"] == c.name
+                ]
+            )
+            for c, _ in built
+        },
+        "trials": trials_out,
+    }
+    sim_time = sum(durations[c.name] * settings["trials"] for c, _ in built)
+    # wall-clock facts vary run to run, so they live outside summary.json (determinism)
+    write_json_atomic(
+        out_dir / "run_info.json",
+        {"wall_time_s": wall, "sim_time_s": sim_time, "realtime_factor": sim_time / wall},
+    )
+    write_json_atomic(out_dir / "summary.json", summary)
+    return summary
+
+
+def failed_summary(cfg: DictConfig | None, error: str) -> dict[str, Any]:
+    """The summary.json of a failed run (DESIGN.md contract)."""
+    name = None
+    seed = None
+    if cfg is not None:
+        name = OmegaConf.select(cfg, "experiment.name", default=None)
+        seed = OmegaConf.select(cfg, "seed", default=None)
+    return {"experiment": name, "status": "failed", "seed": seed, "error": error}
+
+
+def _progress_bar(total: int, desc: str, show: bool) -> Any:
+    """A tqdm bar that appears only if the run lasts more than ~2 s."""
+    if not show:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="step", delay=2.0, mininterval=0.5, leave=False)

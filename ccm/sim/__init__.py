@@ -1,0 +1,26 @@
+"""Physics backends. :func:`make_sim` builds one from the ``sim`` and ``task.scene`` configs."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from ccm.errors import check_choice
+from ccm.sim.base import Simulator
+
+#: backend name -> "module:Class", imported lazily (PyBullet is heavy; see FIELD-NOTES)
+BACKENDS: dict[str, str] = {
+    "pymunk2d": "ccm.sim.pymunk2d:Pymunk2D",
+}
+
+
+def make_sim(
+    sim_cfg: Mapping[str, Any], scene_cfg: Mapping[str, Any], start: Sequence[float]
+) -> Simulator:
+    """Build the simulator named by ``sim_cfg['name']`` for a task's scene and start position."""
+    import importlib
+
+    name = check_choice("sim.name", sim_cfg.get("name"), BACKENDS)
+    module, cls_name = BACKENDS[name].split(":")
+    cls = getattr(importlib.import_module(module), cls_name)
+    return cls.from_config(sim_cfg, scene_cfg, start)

@@ -1,0 +1,60 @@
+"""Simulator interface, shared by every physics backend (gymnasium-style reset/step)."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from ccm.errors import check_int_positive, check_positive
+from ccm.types import Command, Observation, StepInfo
+
+
+class Simulator(ABC):
+    """A world with one end-effector driven by a task-space wrench.
+
+    ``step`` advances one *control* period, i.e. ``control_decimation`` physics steps of
+    ``dt`` seconds, holding the command constant (zero-order hold). The returned
+    ``Observation`` is what the robot senses; the ``StepInfo`` is ground truth for metrics.
+
+    Args:
+        dt: physics time step [s] (default 1 kHz, issue #2; seed A states no step rate).
+        control_decimation: physics steps per control step (>= 1).
+    """
+
+    #: task-space dimension (2 or 3)
+    dim: int = 2
+
+    def __init__(self, dt: float, control_decimation: int) -> None:
+        self.dt = check_positive("sim.dt", dt)
+        self.control_decimation = check_int_positive("sim.control_decimation", control_decimation)
+
+    @property
+    def control_dt(self) -> float:
+        """Control period [s]."""
+        return self.dt * self.control_decimation
+
+    @abstractmethod
+    def reset(self, seed: int | None = None) -> tuple[Observation, StepInfo]:
+        """Rebuild the scene, place the end-effector at its start pose, seed the sensor noise."""
+
+    @abstractmethod
+    def step(self, command: Command) -> tuple[Observation, StepInfo]:
+        """Apply ``command`` for one control period and return the new observation."""
+
+    def close(self) -> None:  # noqa: B027 - optional hook, most backends hold nothing
+        """Release backend resources."""
+
+
+def check_state_finite(obs: Observation, max_speed: float) -> str | None:
+    """Return a reason string if the state has diverged (NaN/inf or speed above ``max_speed``)."""
+    for name in ("position", "lin_vel", "force"):
+        if not np.all(np.isfinite(getattr(obs, name))):
+            return f"non-finite {name} at t={obs.t:.3f} s"
+    speed = float(np.linalg.norm(obs.lin_vel))
+    if speed > max_speed:
+        return (
+            f"end-effector speed {speed:.3g} m/s exceeds sim.max_speed={max_speed} m/s "
+            f"at t={obs.t:.3f} s"
+        )
+    return None

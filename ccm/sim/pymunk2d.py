@@ -1,0 +1,412 @@
+"""Planar physics backend on pymunk (Chipmunk2D), in SI units.
+
+Seed A (Sidhik et al.) ran its 2D experiments in a Box2D world with noiseless measurements
+(§4.1, Fig. 1c); this backend plays that role. The end-effector is a box driven by a
+task-space force, the controller command ``u_t`` of seed A Eq. 1. The robot's own gravity
+compensation (the ``H_t`` term of Eq. 1) is done here, so a controller commands only the
+task-space force.
+
+Modelling choices:
+
+* pymunk's defaults assume pixel units, so ``collision_slop`` and ``iterations`` come from
+  the config (1e-4 m, 30 by default) and every length is in metres.
+* pymunk combines the friction and the restitution of two shapes by multiplying them. The
+  end-effector's shape has friction 1.0 and elasticity 1.0, so the *surface's* values are the
+  effective contact values.
+* Springs and viscous drag are applied by this module as external forces each physics step
+  (exact linear laws, explicit in the state at the start of the step). The explicit drag is
+  stable while ``c * dt / m < 2``.
+* The F/T sensor measures the external wrench on the end-effector: contact forces, springs
+  and drag, never the command or gravity. Contact forces are the arbiters' impulses of the
+  step divided by ``dt``. The impulse that ``Body.each_arbiter`` reports on the EE body is the
+  impulse applied *to the EE* (a box resting on a floor under gravity reads +m g along +y).
+  With ``control_decimation > 1`` the reported wrench is the mean over the control period's
+  physics steps, like a sensor sampled at the physics rate and averaged to the control rate.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pymunk
+
+from ccm.errors import (
+    ConfigError,
+    SimulationDiverged,
+    check_int_positive,
+    check_positive,
+    check_vector,
+)
+from ccm.sim.base import Simulator
+from ccm.sim.scene import SceneSpec, as_plain, check_bool, check_keys
+from ccm.sim.sensor import FTSensor, SensorConfig
+from ccm.types import Command, Observation, StepInfo
+
+_SIM_KEYS = (
+    "name",
+    "description",
+    "dt",
+    "control_decimation",
+    "iterations",
+    "collision_slop",
+    "gravity_compensation",
+    "max_speed",
+    "sensor",
+)
+
+
+@dataclass(frozen=True)
+class Pymunk2DConfig:
+    """Backend settings (``configs/sim/pymunk2d.yaml`` explains each default).
+
+    Attributes:
+        dt: physics step [s] (1 kHz, issue #2).
+        control_decimation: physics steps per control step.
+        iterations: pymunk solver iterations.
+        collision_slop: allowed overlap [m].
+        gravity_compensation: add ``+m g`` along +y to the applied force (Eq. 1, H term).
+        max_speed: runaway guard used by the runner [m/s].
+        sensor: F/T sensor noise and bias.
+    """
+
+    dt: float = 0.001
+    control_decimation: int = 1
+    iterations: int = 30
+    collision_slop: float = 1.0e-4
+    gravity_compensation: bool = True
+    max_speed: float = 20.0
+    sensor: SensorConfig = field(default_factory=SensorConfig.ideal)
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, prefix: str = "sim") -> Pymunk2DConfig:
+        """Parse the ``sim`` config group; errors name keys as ``sim.<field>``."""
+        d = as_plain(cfg, prefix)
+        check_keys(prefix, d, _SIM_KEYS)
+        if "name" in d and d["name"] != "pymunk2d":
+            raise ConfigError(f"{prefix}.name", f"must be 'pymunk2d', got {d['name']!r}")
+        return cls(
+            dt=check_positive(f"{prefix}.dt", d.get("dt", cls.dt)),
+            control_decimation=check_int_positive(
+                f"{prefix}.control_decimation", d.get("control_decimation", 1)
+            ),
+            iterations=check_int_positive(f"{prefix}.iterations", d.get("iterations", 30)),
+            collision_slop=check_positive(
+                f"{prefix}.collision_slop", d.get("collision_slop", cls.collision_slop)
+            ),
+            gravity_compensation=check_bool(
+                f"{prefix}.gravity_compensation", d.get("gravity_compensation", True)
+            ),
+            max_speed=check_positive(f"{prefix}.max_speed", d.get("max_speed", cls.max_speed)),
+            sensor=SensorConfig.from_mapping(d.get("sensor"), 2, 1, f"{prefix}.sensor"),
+        )
+
+
+class Pymunk2D(Simulator):
+    """A 2D world with one box end-effector driven by a task-space force.
+
+    Args:
+        scene: the parsed scene.
+        start: start pose ``[x, y]`` or ``[x, y, angle]`` [m, rad]; the EE starts at rest.
+        config: backend settings (defaults if ``None``).
+
+    Attributes:
+        max_speed: runaway guard [m/s] for :func:`ccm.sim.base.check_state_finite`.
+    """
+
+    dim = 2
+
+    def __init__(
+        self,
+        scene: SceneSpec,
+        start: Sequence[float],
+        config: Pymunk2DConfig | None = None,
+    ) -> None:
+        self.config = config if config is not None else Pymunk2DConfig()
+        super().__init__(self.config.dt, self.config.control_decimation)
+        self.scene = scene
+        st = check_vector("task.start", start, (2, 3))
+        self.start = (float(st[0]), float(st[1]), float(st[2]) if st.shape[0] == 3 else 0.0)
+        self.max_speed = self.config.max_speed
+        self.sensor = FTSensor(self.config.sensor, force_dim=2, torque_dim=1)
+        self._space: pymunk.Space | None = None
+        self._body: pymunk.Body | None = None
+        self._rng: np.random.Generator | None = None
+        self._steps = 0
+        self._path = 0.0
+        # scratch for _visit_arbiter: fx, fy, torque, n points, friction, largest |impulse|
+        self._acc_contact: list[float] = [0.0, 0.0, 0.0, 0.0, -1.0, -1.0]
+        self._springs = [
+            (s.anchor[0], s.anchor[1], s.stiffness, s.rest_length) for s in scene.springs
+        ]
+        self._comp_fy = scene.ee.mass * scene.gravity if self.config.gravity_compensation else 0.0
+
+    @classmethod
+    def from_config(
+        cls, sim_cfg: Mapping[str, Any], scene_cfg: Mapping[str, Any], start: Sequence[float]
+    ) -> Pymunk2D:
+        """Build from the ``sim`` group, ``task.scene`` and ``task.start`` configs.
+
+        Raises:
+            ConfigError: naming the first invalid key (``sim.*``, ``task.scene.*``,
+                ``task.start``).
+        """
+        config = Pymunk2DConfig.from_mapping(sim_cfg, "sim")
+        scene = SceneSpec.from_mapping(scene_cfg, "task.scene")
+        return cls(scene, start, config)
+
+    # ------------------------------------------------------------------ public API
+
+    @property
+    def physics_steps(self) -> int:
+        """Physics steps since the last reset."""
+        return self._steps
+
+    @property
+    def path_length(self) -> float:
+        """Path length travelled by the EE centre since the last reset [m]."""
+        return self._path
+
+    def reset(self, seed: int | None = None) -> tuple[Observation, StepInfo]:
+        """Rebuild the space, put the EE at ``start`` at rest, seed the sensor noise."""
+        self._space, self._body = self._build_space()
+        self._rng = np.random.default_rng(seed)
+        self.sensor.reset(self._rng)
+        self._steps = 0
+        self._path = 0.0
+        x, y = self.start[0], self.start[1]
+        fsx, fsy = self._spring_force(x, y)
+        f_true = np.array([fsx, fsy])
+        return self._output(f_true, np.zeros(1), np.zeros(2), 0, -1.0)
+
+    def step(self, command: Command) -> tuple[Observation, StepInfo]:
+        """Hold ``command`` for ``control_decimation`` physics steps (zero-order hold).
+
+        Raises:
+            SimulationDiverged: on a non-finite command or state.
+        """
+        body, space = self._body, self._space
+        if body is None or space is None:
+            raise RuntimeError("Pymunk2D.step() called before reset()")
+        f_cmd = np.asarray(command.force, dtype=float)
+        t_cmd = np.asarray(command.torque, dtype=float)
+        if f_cmd.shape != (2,) or t_cmd.shape != (1,):
+            raise ValueError(
+                f"command must have force (2,) and torque (1,), got {f_cmd.shape}, {t_cmd.shape}"
+            )
+        if not (np.all(np.isfinite(f_cmd)) and np.all(np.isfinite(t_cmd))):
+            raise SimulationDiverged(
+                f"non-finite command force={f_cmd.tolist()} torque={t_cmd.tolist()} "
+                f"at t={self._steps * self.dt:.3f} s"
+            )
+        cfx, cfy = float(f_cmd[0]), float(f_cmd[1]) + self._comp_fy
+        ctq = float(t_cmd[0])
+        dt = self.dt
+        acc = [0.0] * 5  # sum of external fx, fy, torque, contact fx, contact fy
+        n_contacts, mu = 0, -1.0
+        for _ in range(self.control_decimation):
+            x, y = body.position
+            vx, vy = body.velocity
+            fsx, fsy = self._spring_force(x, y)
+            c = self._viscosity(x, y)
+            fex, fey = fsx - c * vx, fsy - c * vy
+            body.force = (cfx + fex, cfy + fey)
+            body.torque = ctq
+            space.step(dt)
+            kfx, kfy, ktq, n_contacts, mu = self._read_contacts(body)
+            acc[0] += fex + kfx
+            acc[1] += fey + kfy
+            acc[2] += ktq
+            acc[3] += kfx
+            acc[4] += kfy
+            nx, ny = body.position
+            self._steps += 1
+            self._path += math.hypot(nx - x, ny - y)
+            self._check_state(body)
+        k = 1.0 / self.control_decimation
+        return self._output(
+            np.array([acc[0] * k, acc[1] * k]),
+            np.array([acc[2] * k]),
+            np.array([acc[3] * k, acc[4] * k]),
+            n_contacts,
+            mu,
+        )
+
+    def close(self) -> None:
+        """Drop the pymunk space."""
+        self._space = None
+        self._body = None
+
+    # ------------------------------------------------------------------ internals
+
+    def _build_space(self) -> tuple[pymunk.Space, pymunk.Body]:
+        """A fresh space with the static scene and the EE at ``start`` at rest."""
+        cfg, scene = self.config, self.scene
+        space = pymunk.Space()
+        space.iterations = cfg.iterations
+        space.collision_slop = cfg.collision_slop
+        space.gravity = (0.0, -scene.gravity)
+        static = space.static_body
+        for surf in scene.surfaces:
+            ax, ay = surf.a
+            ux, uy = (surf.b[0] - ax) / surf.length, (surf.b[1] - ay) / surf.length
+            pieces = []
+            for s0, s1, mu in surf.pieces():
+                seg = pymunk.Segment(
+                    static, (ax + ux * s0, ay + uy * s0), (ax + ux * s1, ay + uy * s1), surf.radius
+                )
+                seg.friction = mu
+                seg.elasticity = surf.restitution
+                pieces.append(seg)
+            # Tell Chipmunk the pieces form one line so the EE does not catch on the joints.
+            # A piece's own endpoint as neighbour means "no neighbour" (zero tangent).
+            for i, seg in enumerate(pieces):
+                last = i + 1 == len(pieces)
+                seg.set_neighbors(
+                    pieces[i - 1].a if i else seg.a, seg.b if last else pieces[i + 1].b
+                )
+            space.add(*pieces)
+        for box in scene.boxes:
+            (cx, cy), (w, h) = box.center, box.size
+            verts = [(cx - w / 2, cy - h / 2), (cx + w / 2, cy - h / 2),
+                     (cx + w / 2, cy + h / 2), (cx - w / 2, cy + h / 2)]  # fmt: skip
+            poly = pymunk.Poly(static, verts)
+            poly.friction = box.friction
+            poly.elasticity = box.restitution
+            space.add(poly)
+        ee = scene.ee
+        moment = pymunk.moment_for_box(ee.mass, ee.size) if ee.rotate else float("inf")
+        body = pymunk.Body(ee.mass, moment)
+        body.position = (self.start[0], self.start[1])
+        body.angle = self.start[2]
+        shape = pymunk.Poly.create_box(body, ee.size)
+        # Multiplicative combination: the surface's friction/restitution become effective.
+        shape.friction = 1.0
+        shape.elasticity = 1.0
+        space.add(body, shape)
+        return space, body
+
+    def _spring_force(self, x: float, y: float) -> tuple[float, float]:
+        """Sum of ``-k (|d| - L0) d/|d|`` over springs; zero where ``|d| = 0``."""
+        fx = fy = 0.0
+        for axp, ayp, k, l0 in self._springs:
+            dx, dy = x - axp, y - ayp
+            if l0 == 0.0:
+                fx -= k * dx
+                fy -= k * dy
+                continue
+            r = math.hypot(dx, dy)
+            if r > 0.0:
+                s = -k * (r - l0) / r
+                fx += s * dx
+                fy += s * dy
+        return fx, fy
+
+    def _viscosity(self, x: float, y: float) -> float:
+        """Sum of the coefficients [N s/m] of the viscous fields containing (x, y) now."""
+        c = 0.0
+        for field_ in self.scene.viscous:
+            if field_.region is None or field_.region.contains(x, y):
+                c += field_.schedule.coefficient(self._steps, self._path)
+        return c
+
+    def _read_contacts(self, body: pymunk.Body) -> tuple[float, float, float, int, float]:
+        """Contact force, torque about the EE centre, point count and touched friction."""
+        self._acc_contact = [0.0, 0.0, 0.0, 0.0, -1.0, -1.0]
+        body.each_arbiter(self._visit_arbiter)
+        fx, fy, tq, n, mu, _ = self._acc_contact
+        return fx, fy, tq, int(n), mu
+
+    def _visit_arbiter(self, arb: pymunk.Arbiter) -> None:
+        """Accumulate one arbiter (called by ``Body.each_arbiter`` with the EE as shape 0)."""
+        acc = self._acc_contact
+        inv_dt = 1.0 / self.dt
+        imp = arb.total_impulse  # impulse applied to the EE during the last step
+        fx, fy = imp.x * inv_dt, imp.y * inv_dt
+        pts = arb.contact_point_set.points
+        body = self._body
+        assert body is not None
+        px, py = body.position
+        tq = self._per_contact_torque(arb, inv_dt) if self.scene.ee.rotate else None
+        if tq is None and pts:
+            # Rotation locked: the solver's split of the impulse between the points of a flat
+            # face is arbitrary, so take a uniform pressure (force at the points' centroid).
+            cx = sum(p.point_a.x + p.point_b.x for p in pts) / (2 * len(pts))
+            cy = sum(p.point_a.y + p.point_b.y for p in pts) / (2 * len(pts))
+            tq = (cx - px) * fy - (cy - py) * fx
+        acc[0] += fx
+        acc[1] += fy
+        acc[2] += tq or 0.0
+        acc[3] += len(pts)
+        if abs(imp.x) + abs(imp.y) > acc[5]:
+            acc[5] = abs(imp.x) + abs(imp.y)
+            acc[4] = float(arb.friction)  # = surface friction x EE friction 1.0
+
+    @staticmethod
+    def _per_contact_torque(arb: pymunk.Arbiter, inv_dt: float) -> float | None:
+        """Exact contact torque from Chipmunk's per-point impulses, or None if unavailable.
+
+        pymunk 7 has no public per-point impulse, so this reads the cffi ``cpArbiter`` struct
+        (``contacts[i].jnAcc/jtAcc``, arms ``r1``/``r2``). During ``each_arbiter`` the flag
+        ``swapped`` is set when the EE is Chipmunk's ``body_b``, which receives ``+j``.
+        """
+        try:
+            a = arb._arbiter  # noqa: SLF001 - see docstring
+            nx, ny, ee_is_b = a.n.x, a.n.y, bool(a.swapped)
+            tq = 0.0
+            for i in range(a.count):
+                c = a.contacts[i]
+                jx = nx * c.jnAcc - ny * c.jtAcc
+                jy = ny * c.jnAcc + nx * c.jtAcc
+                r = c.r2 if ee_is_b else c.r1
+                tq += r.x * jy - r.y * jx
+        except (AttributeError, TypeError):  # pragma: no cover - pymunk internals changed
+            return None
+        return (tq if ee_is_b else -tq) * inv_dt
+
+    def _check_state(self, body: pymunk.Body) -> None:
+        x, y = body.position
+        vx, vy = body.velocity
+        if not all(map(math.isfinite, (x, y, vx, vy, body.angle, body.angular_velocity))):
+            raise SimulationDiverged(
+                f"non-finite end-effector state at t={self._steps * self.dt:.3f} s "
+                f"(position=({x}, {y}), velocity=({vx}, {vy}))"
+            )
+
+    def _output(
+        self,
+        f_true: np.ndarray,
+        t_true: np.ndarray,
+        f_contact: np.ndarray,
+        n_contacts: int,
+        mu: float,
+    ) -> tuple[Observation, StepInfo]:
+        body = self._body
+        assert body is not None
+        x, y = body.position
+        vx, vy = body.velocity
+        f_meas, t_meas = self.sensor.measure(f_true, t_true)
+        obs = Observation(
+            t=self._steps * self.dt,
+            position=np.array([x, y]),
+            orientation=np.array([body.angle]),
+            lin_vel=np.array([vx, vy]),
+            ang_vel=np.array([body.angular_velocity]),
+            force=f_meas,
+            torque=t_meas,
+        )
+        info = StepInfo(
+            true_force=f_true.copy(),
+            true_torque=t_true.copy(),
+            contact_force=f_contact.copy(),
+            n_contacts=n_contacts,
+            extra={
+                "viscosity_Nspm": self._viscosity(x, y),
+                "surface_friction": mu if n_contacts > 0 else -1.0,
+                "contact": 1.0 if n_contacts > 0 else 0.0,
+            },
+        )
+        return obs, info

@@ -1,0 +1,413 @@
+"""The 2D scene vocabulary: end-effector, surfaces, boxes, springs and viscous fields.
+
+A scene is plain data, parsed and validated from a mapping (a ``dict`` or an OmegaConf
+``DictConfig``). Every invalid value raises :class:`ccm.errors.ConfigError` naming the full
+dotted key, e.g. ``task.scene.springs[1].stiffness``. Units are SI (metres, kg, seconds);
+the world frame has x to the right and y up.
+
+The elements mirror the environments of seed A (Sidhik et al.): surfaces with friction
+patches (Fig. 1a, Fig. 8, "changing surface" task), walls and blocks (Fig. 1b), springs
+pulling the end-effector (Fig. 1c, "multi-spring") and a viscous medium whose coefficient
+changes over time or distance (§4.1, "porridge stirring").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from ccm.errors import (
+    ConfigError,
+    check_choice,
+    check_finite,
+    check_nonneg,
+    check_positive,
+    check_range,
+    check_vector,
+)
+
+Vec2 = tuple[float, float]
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def as_plain(cfg: Any, key: str) -> dict[str, Any]:
+    """Return ``cfg`` as a plain ``dict`` (resolving an OmegaConf ``DictConfig``).
+
+    Args:
+        cfg: a mapping or a ``DictConfig``; ``None`` gives an empty dict.
+        key: dotted config path used in the error message.
+
+    Raises:
+        ConfigError: if ``cfg`` is not a mapping.
+    """
+    if cfg is None:
+        return {}
+    try:
+        from omegaconf import DictConfig, ListConfig, OmegaConf
+
+        if isinstance(cfg, DictConfig | ListConfig):
+            cfg = OmegaConf.to_container(cfg, resolve=True)
+    except ImportError:  # pragma: no cover - omegaconf is a dependency
+        pass
+    if not isinstance(cfg, Mapping):
+        raise ConfigError(key, f"must be a mapping, got {type(cfg).__name__}")
+    return dict(cfg)
+
+
+def check_keys(key: str, cfg: Mapping[str, Any], allowed: Iterable[str]) -> None:
+    """Reject keys of ``cfg`` that are not in ``allowed``, naming the bad key and the options."""
+    options = list(allowed)
+    for name in cfg:
+        if name not in options:
+            raise ConfigError(f"{key}.{name}", f"unknown key; allowed: {', '.join(options)}")
+
+
+def check_bool(key: str, value: Any) -> bool:
+    """Return ``value`` if it is a bool (YAML ``true``/``false``)."""
+    if not isinstance(value, bool):
+        raise ConfigError(key, f"must be true or false, got {value!r}")
+    return value
+
+
+def _vec2(key: str, value: Any) -> Vec2:
+    arr = check_vector(key, value, 2)
+    return (float(arr[0]), float(arr[1]))
+
+
+def _list(key: str, value: Any) -> list[Any]:
+    if value is None:
+        return []
+    if isinstance(value, str | bytes | Mapping) or not isinstance(value, Iterable):
+        raise ConfigError(key, f"must be a list, got {value!r}")
+    return list(value)
+
+
+# --------------------------------------------------------------------------- elements
+
+
+@dataclass(frozen=True)
+class EESpec:
+    """The end-effector: a box driven by a task-space force (seed A Eq. 1, u_t).
+
+    Attributes:
+        size: box width and height [m].
+        mass: [kg], > 0.
+        rotate: if False (default) the rotation is locked (infinite moment of inertia).
+    """
+
+    size: Vec2 = (0.05, 0.05)
+    mass: float = 1.0
+    rotate: bool = False
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> EESpec:
+        d = as_plain(cfg, key)
+        check_keys(key, d, ("size", "mass", "rotate"))
+        size = _vec2(f"{key}.size", d.get("size", cls.size))
+        for i, s in enumerate(size):
+            check_positive(f"{key}.size[{i}]", s)
+        mass = check_positive(f"{key}.mass", d.get("mass", cls.mass))
+        rotate = check_bool(f"{key}.rotate", d.get("rotate", cls.rotate))
+        return cls(size=size, mass=mass, rotate=rotate)
+
+
+@dataclass(frozen=True)
+class Patch:
+    """A stretch of a surface with its own friction (seed A Fig. 1a, surface change).
+
+    Attributes:
+        start: distance along the segment from its point ``a`` where the patch begins [m]
+            (config key ``from``).
+        end: distance from ``a`` where it ends [m] (config key ``to``).
+        friction: Coulomb friction coefficient on the patch, >= 0.
+    """
+
+    start: float
+    end: float
+    friction: float
+
+
+@dataclass(frozen=True)
+class SurfaceSpec:
+    """A static line segment from ``a`` to ``b`` (a table top, a wall face).
+
+    Attributes:
+        a, b: endpoints [m].
+        friction: Coulomb coefficient outside the patches (default 0.5).
+        restitution: coefficient of restitution in [0, 1] (default 0.0, no bounce).
+        radius: segment thickness radius [m] (default 0.002).
+        patches: non-overlapping stretches with other friction, sorted by ``start``.
+    """
+
+    a: Vec2
+    b: Vec2
+    friction: float = 0.5
+    restitution: float = 0.0
+    radius: float = 0.002
+    patches: tuple[Patch, ...] = ()
+
+    @property
+    def length(self) -> float:
+        return float(((self.b[0] - self.a[0]) ** 2 + (self.b[1] - self.a[1]) ** 2) ** 0.5)
+
+    def pieces(self) -> list[tuple[float, float, float]]:
+        """Split the segment into consecutive ``(s0, s1, friction)`` pieces along its length."""
+        out: list[tuple[float, float, float]] = []
+        s = 0.0
+        for p in self.patches:
+            if p.start > s:
+                out.append((s, p.start, self.friction))
+            out.append((p.start, p.end, p.friction))
+            s = p.end
+        if self.length > s:
+            out.append((s, self.length, self.friction))
+        return out
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> SurfaceSpec:
+        d = as_plain(cfg, key)
+        check_keys(key, d, ("a", "b", "friction", "restitution", "radius", "patches"))
+        for req in ("a", "b"):
+            if req not in d:
+                raise ConfigError(f"{key}.{req}", "is required (segment endpoint [x, y] in m)")
+        a = _vec2(f"{key}.a", d["a"])
+        b = _vec2(f"{key}.b", d["b"])
+        friction = check_nonneg(f"{key}.friction", d.get("friction", cls.friction))
+        restitution = _restitution(f"{key}.restitution", d.get("restitution", cls.restitution))
+        radius = check_nonneg(f"{key}.radius", d.get("radius", cls.radius))
+        surf = cls(a=a, b=b, friction=friction, restitution=restitution, radius=radius)
+        if surf.length <= 0.0:
+            raise ConfigError(f"{key}.b", "must differ from a (zero-length segment)")
+        patches: list[Patch] = []
+        for i, pcfg in enumerate(_list(f"{key}.patches", d.get("patches"))):
+            pk = f"{key}.patches[{i}]"
+            pd = as_plain(pcfg, pk)
+            check_keys(pk, pd, ("from", "to", "friction"))
+            for req in ("from", "to", "friction"):
+                if req not in pd:
+                    raise ConfigError(f"{pk}.{req}", "is required")
+            s0 = check_nonneg(f"{pk}.from", pd["from"])
+            s1 = check_finite(f"{pk}.to", pd["to"])
+            if not s0 < s1 <= surf.length + 1e-12:
+                raise ConfigError(
+                    f"{pk}.to", f"must satisfy from < to <= segment length {surf.length:.6g} m"
+                )
+            mu = check_nonneg(f"{pk}.friction", pd["friction"])
+            patches.append(Patch(start=s0, end=min(s1, surf.length), friction=mu))
+        patches.sort(key=lambda p: p.start)
+        for prev, nxt in zip(patches, patches[1:], strict=False):
+            if nxt.start < prev.end:
+                raise ConfigError(f"{key}.patches", f"patches overlap at {nxt.start:.6g} m")
+        return cls(
+            a=a, b=b, friction=friction, restitution=restitution, radius=radius,
+            patches=tuple(patches),
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class BoxSpec:
+    """A static axis-aligned block (a wall or an obstacle, seed A Fig. 1b).
+
+    Attributes:
+        center: [m]; size: width and height [m];
+        friction: Coulomb coefficient (default 0.5); restitution: in [0, 1] (default 0.0).
+    """
+
+    center: Vec2
+    size: Vec2
+    friction: float = 0.5
+    restitution: float = 0.0
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> BoxSpec:
+        d = as_plain(cfg, key)
+        check_keys(key, d, ("center", "size", "friction", "restitution"))
+        for req in ("center", "size"):
+            if req not in d:
+                raise ConfigError(f"{key}.{req}", "is required")
+        center = _vec2(f"{key}.center", d["center"])
+        size = _vec2(f"{key}.size", d["size"])
+        for i, s in enumerate(size):
+            check_positive(f"{key}.size[{i}]", s)
+        return cls(
+            center=center,
+            size=size,
+            friction=check_nonneg(f"{key}.friction", d.get("friction", cls.friction)),
+            restitution=_restitution(f"{key}.restitution", d.get("restitution", cls.restitution)),
+        )
+
+
+@dataclass(frozen=True)
+class SpringSpec:
+    """A linear spring from a fixed anchor to the end-effector centre (seed A Fig. 1c).
+
+    The force on the end-effector is ``F = -k (|d| - L0) d / |d|`` with ``d = p_ee - anchor``.
+
+    Attributes:
+        anchor: [m]; stiffness: k [N/m] > 0; rest_length: L0 [m] >= 0 (default 0).
+    """
+
+    anchor: Vec2
+    stiffness: float
+    rest_length: float = 0.0
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> SpringSpec:
+        d = as_plain(cfg, key)
+        check_keys(key, d, ("anchor", "stiffness", "rest_length"))
+        for req in ("anchor", "stiffness"):
+            if req not in d:
+                raise ConfigError(f"{key}.{req}", "is required")
+        return cls(
+            anchor=_vec2(f"{key}.anchor", d["anchor"]),
+            stiffness=check_positive(f"{key}.stiffness", d["stiffness"]),
+            rest_length=check_nonneg(f"{key}.rest_length", d.get("rest_length", 0.0)),
+        )
+
+
+@dataclass(frozen=True)
+class RegionSpec:
+    """Axis-aligned rectangle ``center ± half_extents`` [m]."""
+
+    center: Vec2
+    half_extents: Vec2
+
+    def contains(self, x: float, y: float) -> bool:
+        """True if the point (x, y) lies inside the rectangle (boundary included)."""
+        return (
+            abs(x - self.center[0]) <= self.half_extents[0]
+            and abs(y - self.center[1]) <= self.half_extents[1]
+        )
+
+
+_SCHEDULE_KEYS = {
+    "constant": ("kind", "value"),
+    "ramp_per_step": ("kind", "start", "end", "rate"),
+    "ramp_per_distance": ("kind", "start", "end", "rate"),
+}
+
+
+@dataclass(frozen=True)
+class ScheduleSpec:
+    """How a viscous coefficient c [N s/m] evolves (seed A §4.1, changing viscosity).
+
+    Kinds:
+        ``constant``: ``c = value``.
+        ``ramp_per_step``: ``c = start + rate * n`` with ``n`` physics steps since reset,
+            clipped to the interval between ``start`` and ``end``.
+        ``ramp_per_distance``: ``c = start + rate * s`` with ``s`` the end-effector's path
+            length since reset [m], clipped likewise.
+
+    A negative ``rate`` ramps down; its sign must agree with ``end - start``.
+    """
+
+    kind: str
+    start: float
+    end: float
+    rate: float = 0.0
+
+    def coefficient(self, steps: int, distance: float) -> float:
+        """Coefficient [N s/m] after ``steps`` physics steps and ``distance`` metres of travel."""
+        if self.kind == "constant":
+            return self.start
+        x = steps if self.kind == "ramp_per_step" else distance
+        c = self.start + self.rate * x
+        lo, hi = (self.start, self.end) if self.start <= self.end else (self.end, self.start)
+        return min(max(c, lo), hi)
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> ScheduleSpec:
+        d = as_plain(cfg, key)
+        kind = check_choice(f"{key}.kind", d.get("kind"), _SCHEDULE_KEYS)
+        check_keys(key, d, _SCHEDULE_KEYS[kind])
+        for req in _SCHEDULE_KEYS[kind][1:]:
+            if req not in d:
+                raise ConfigError(f"{key}.{req}", f"is required for kind {kind!r}")
+        if kind == "constant":
+            v = check_nonneg(f"{key}.value", d["value"])
+            return cls(kind=kind, start=v, end=v)
+        start = check_nonneg(f"{key}.start", d["start"])
+        end = check_nonneg(f"{key}.end", d["end"])
+        rate = check_finite(f"{key}.rate", d["rate"])
+        if (end - start) * rate < 0.0:
+            raise ConfigError(f"{key}.rate", f"sign must agree with end - start, got rate={rate!r}")
+        return cls(kind=kind, start=start, end=end, rate=rate)
+
+
+@dataclass(frozen=True)
+class ViscousSpec:
+    """A viscous field: inside ``region`` (everywhere if ``None``) the EE feels ``F = -c v``."""
+
+    schedule: ScheduleSpec
+    region: RegionSpec | None = None
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> ViscousSpec:
+        d = as_plain(cfg, key)
+        check_keys(key, d, ("region", "schedule"))
+        if "schedule" not in d:
+            raise ConfigError(f"{key}.schedule", "is required")
+        region = None
+        if d.get("region") is not None:
+            rk = f"{key}.region"
+            rd = as_plain(d["region"], rk)
+            check_keys(rk, rd, ("center", "half_extents"))
+            for req in ("center", "half_extents"):
+                if req not in rd:
+                    raise ConfigError(f"{rk}.{req}", "is required")
+            half = _vec2(f"{rk}.half_extents", rd["half_extents"])
+            for i, h in enumerate(half):
+                check_positive(f"{rk}.half_extents[{i}]", h)
+            region = RegionSpec(center=_vec2(f"{rk}.center", rd["center"]), half_extents=half)
+        return cls(
+            schedule=ScheduleSpec.from_mapping(d["schedule"], f"{key}.schedule"), region=region
+        )
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """A whole 2D scene.
+
+    Attributes:
+        gravity: magnitude along -y [m/s^2] (default 0.0: a top-down planar world).
+        ee: the end-effector.
+        surfaces, boxes, springs, viscous: the scene elements (each may be empty).
+    """
+
+    gravity: float = 0.0
+    ee: EESpec = field(default_factory=EESpec)
+    surfaces: tuple[SurfaceSpec, ...] = ()
+    boxes: tuple[BoxSpec, ...] = ()
+    springs: tuple[SpringSpec, ...] = ()
+    viscous: tuple[ViscousSpec, ...] = ()
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, prefix: str = "task.scene") -> SceneSpec:
+        """Parse and validate a scene mapping; keys in errors start with ``prefix``."""
+        d = as_plain(cfg, prefix)
+        check_keys(prefix, d, ("gravity", "ee", "surfaces", "boxes", "springs", "viscous"))
+
+        def parse_list(name: str, parser: Any) -> tuple[Any, ...]:
+            items = _list(f"{prefix}.{name}", d.get(name))
+            return tuple(parser(c, f"{prefix}.{name}[{i}]") for i, c in enumerate(items))
+
+        return cls(
+            gravity=check_nonneg(f"{prefix}.gravity", d.get("gravity", 0.0)),
+            ee=EESpec.from_mapping(d.get("ee"), f"{prefix}.ee"),
+            surfaces=parse_list("surfaces", SurfaceSpec.from_mapping),
+            boxes=parse_list("boxes", BoxSpec.from_mapping),
+            springs=parse_list("springs", SpringSpec.from_mapping),
+            viscous=parse_list("viscous", ViscousSpec.from_mapping),
+        )
+
+
+def parse_scene(cfg: Any, prefix: str = "task.scene") -> SceneSpec:
+    """Parse a scene mapping (dict or ``DictConfig``); see :meth:`SceneSpec.from_mapping`."""
+    return SceneSpec.from_mapping(cfg, prefix)
+
+
+def _restitution(key: str, value: Any) -> float:
+    return check_range(key, value, 0.0, 1.0)

@@ -1,0 +1,168 @@
+"""The modelled force/torque sensor: true external wrench in, measured wrench out.
+
+The measurement model is ``measured = true + bias + noise`` with ``noise ~ N(0, diag(std²))``
+drawn independently per axis and per sample from a ``numpy.random.Generator`` given at
+:meth:`FTSensor.reset` (DESIGN.md: randomness only through a seeded generator). The sensor
+never sees the command or gravity: the simulator passes it the external wrench only.
+
+It is dimension-agnostic (force ``(n,)``, torque ``(r,)``) so the 2D pymunk and the 3D
+PyBullet backends share it. Seed A §4.1 used noiseless measurements in its 2D simulation,
+hence the zero defaults.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ccm.errors import ConfigError, check_finite, check_nonneg, check_vector
+
+
+def _per_axis(key: str, value: Any, dim: int, nonneg: bool) -> tuple[float, ...]:
+    """A scalar (broadcast to every axis) or a length-``dim`` list, as a tuple of floats."""
+    if isinstance(value, int | float | np.number) and not isinstance(value, bool):
+        v = check_nonneg(key, value) if nonneg else check_finite(key, value)
+        return (float(v),) * dim
+    arr = check_vector(key, value, dim)
+    if nonneg and np.any(arr < 0.0):
+        raise ConfigError(key, f"must be >= 0 on every axis, got {value!r}")
+    return tuple(float(a) for a in arr)
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """Noise and bias of the F/T sensor, one entry per axis (tuples, so configs compare equal).
+
+    Attributes:
+        force_noise_std: Gaussian noise std per force axis [N], shape (n,).
+        torque_noise_std: Gaussian noise std per torque axis [N m], shape (r,).
+        force_bias: constant offset per force axis [N], shape (n,).
+        torque_bias: constant offset per torque axis [N m], shape (r,).
+    """
+
+    force_noise_std: tuple[float, ...]
+    torque_noise_std: tuple[float, ...]
+    force_bias: tuple[float, ...]
+    torque_bias: tuple[float, ...]
+
+    @property
+    def force_dim(self) -> int:
+        return len(self.force_bias)
+
+    @property
+    def torque_dim(self) -> int:
+        return len(self.torque_bias)
+
+    @classmethod
+    def ideal(cls, force_dim: int = 2, torque_dim: int = 1) -> SensorConfig:
+        """A noiseless, unbiased sensor."""
+        return cls.from_values(force_dim=force_dim, torque_dim=torque_dim)
+
+    @classmethod
+    def from_values(
+        cls,
+        force_noise_std: float | Sequence[float] = 0.0,
+        torque_noise_std: float | Sequence[float] = 0.0,
+        force_bias: float | Sequence[float] = 0.0,
+        torque_bias: float | Sequence[float] = 0.0,
+        force_dim: int = 2,
+        torque_dim: int = 1,
+        prefix: str = "sim.sensor",
+    ) -> SensorConfig:
+        """Build from scalars (broadcast to every axis) or per-axis sequences, validating."""
+        return cls(
+            force_noise_std=_per_axis(
+                f"{prefix}.force_noise_std", force_noise_std, force_dim, True
+            ),
+            torque_noise_std=_per_axis(
+                f"{prefix}.torque_noise_std", torque_noise_std, torque_dim, True
+            ),
+            force_bias=_per_axis(f"{prefix}.force_bias", force_bias, force_dim, False),
+            torque_bias=_per_axis(f"{prefix}.torque_bias", torque_bias, torque_dim, False),
+        )
+
+    @classmethod
+    def from_mapping(
+        cls, cfg: Any, force_dim: int = 2, torque_dim: int = 1, prefix: str = "sim.sensor"
+    ) -> SensorConfig:
+        """Parse ``{force_noise_std, torque_noise_std, force_bias, torque_bias}`` (all optional).
+
+        Raises:
+            ConfigError: on unknown keys, negative std or wrong vector lengths.
+        """
+        from ccm.sim.scene import as_plain, check_keys
+
+        allowed = ("force_noise_std", "torque_noise_std", "force_bias", "torque_bias")
+        d = as_plain(cfg, prefix)
+        check_keys(prefix, d, allowed)
+        return cls.from_values(
+            **{k: d[k] for k in allowed if k in d},
+            force_dim=force_dim,
+            torque_dim=torque_dim,
+            prefix=prefix,
+        )
+
+
+class FTSensor:
+    """A force/torque sensor with per-axis Gaussian noise and constant bias.
+
+    Args:
+        config: noise and bias; ``None`` means an ideal sensor of the given dimensions.
+        force_dim: n, length of the force vector.
+        torque_dim: r, length of the torque vector.
+
+    Example:
+        >>> s = FTSensor(SensorConfig.from_values(force_noise_std=0.1))
+        >>> s.reset(np.random.default_rng(0))
+        >>> f, t = s.measure(np.zeros(2), np.zeros(1))
+    """
+
+    def __init__(
+        self, config: SensorConfig | None = None, force_dim: int = 2, torque_dim: int = 1
+    ) -> None:
+        self.config = config if config is not None else SensorConfig.ideal(force_dim, torque_dim)
+        if (self.config.force_dim, self.config.torque_dim) != (force_dim, torque_dim):
+            raise ValueError(
+                f"sensor config has dims ({self.config.force_dim}, {self.config.torque_dim}), "
+                f"expected ({force_dim}, {torque_dim})"
+            )
+        self.force_dim = force_dim
+        self.torque_dim = torque_dim
+        self._f_std = np.array(self.config.force_noise_std)
+        self._t_std = np.array(self.config.torque_noise_std)
+        self._f_bias = np.array(self.config.force_bias)
+        self._t_bias = np.array(self.config.torque_bias)
+        self._noisy_force = bool(np.any(self._f_std > 0.0))
+        self._noisy_torque = bool(np.any(self._t_std > 0.0))
+        self._rng: np.random.Generator | None = None
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Use ``rng`` for all later noise draws (the simulator seeds it at its reset)."""
+        self._rng = rng
+
+    def measure(self, force: np.ndarray, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return the measured ``(force, torque)`` for the true external wrench.
+
+        Noise is drawn once per call (one sample per axis), force axes first, and only for
+        the parts whose std is non-zero, so a noiseless sensor consumes no random numbers.
+
+        Args:
+            force: true external force, shape (n,).
+            torque: true external torque, shape (r,).
+
+        Returns:
+            New arrays ``(force_measured, torque_measured)``.
+        """
+        f = np.asarray(force, dtype=float).reshape(self.force_dim) + self._f_bias
+        t = np.asarray(torque, dtype=float).reshape(self.torque_dim) + self._t_bias
+        if self._noisy_force or self._noisy_torque:
+            if self._rng is None:
+                raise RuntimeError("FTSensor.reset(rng) must be called before a noisy measure()")
+            if self._noisy_force:
+                f = f + self._rng.normal(0.0, 1.0, self.force_dim) * self._f_std
+            if self._noisy_torque:
+                t = t + self._rng.normal(0.0, 1.0, self.torque_dim) * self._t_std
+        return f, t

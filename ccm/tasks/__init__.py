@@ -1,0 +1,1 @@
+"""Tasks: scenes and target motion patterns P, built from YAML."""

@@ -1,0 +1,139 @@
+"""Tasks: a scene description plus a target motion pattern P, loaded from YAML (``configs/task``).
+
+A task says *what* the robot must do (seed A §3: the target pattern P of pose and force targets)
+and *where* (the scene: surfaces, springs, viscous fields…). The scene is passed through as a
+plain mapping; the simulator validates it. This module must not import ``ccm.sim`` or
+``ccm.control`` (DESIGN.md, "Imports point one way").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from ccm.errors import ConfigError, check_vector
+from ccm.tasks.trajectory import MotionPattern, build_pattern
+
+__all__ = ["TASK_KEYS", "Task", "load_task"]
+
+#: Top-level keys a task mapping may hold.
+TASK_KEYS: tuple[str, ...] = (
+    "name",
+    "description",
+    "dim",
+    "start",
+    "orientation",
+    "scene",
+    "pattern",
+    "params",
+)
+_REQUIRED = ("name", "dim", "start", "scene", "pattern")
+
+
+@dataclass
+class Task:
+    """A changing-contact task: scene plus target motion pattern.
+
+    Attributes:
+        name: task identifier (e.g. ``porridge_stirring``).
+        dim: task-space dimension, 2 (planar world) or 3.
+        start: end-effector start position, world frame [m], shape (dim,).
+        scene: simulator scene description (validated by the simulator, not here).
+        pattern: the target motion pattern P (seed A §3).
+        description: one-line human description.
+        params: task-specific extras that are not part of the scene or pattern (e.g. the
+            viscosity ramps of seed A §4.1), passed through unvalidated.
+    """
+
+    name: str
+    dim: int
+    start: np.ndarray
+    scene: dict[str, Any]
+    pattern: MotionPattern
+    description: str = ""
+    params: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def duration(self) -> float:
+        """Duration of the target pattern [s]."""
+        return self.pattern.duration
+
+
+def _to_dict(key: str, cfg: Any) -> dict[str, Any]:
+    if isinstance(cfg, DictConfig):
+        try:
+            out = OmegaConf.to_container(cfg, resolve=True)
+        except OmegaConfBaseException as err:
+            raise ConfigError(key, str(err).splitlines()[0]) from None
+        assert isinstance(out, dict)
+        return out
+    if not isinstance(cfg, Mapping):
+        raise ConfigError(key, f"must be a mapping, got {type(cfg).__name__}")
+    return dict(cfg)
+
+
+def load_task(
+    task_cfg: Mapping[str, Any] | DictConfig, control_dt: float, key: str = "task"
+) -> Task:
+    """Build a :class:`Task` from its configuration mapping (the Hydra ``task`` group).
+
+    Args:
+        task_cfg: dict or OmegaConf ``DictConfig`` with keys ``name``, ``description``,
+            ``dim`` (2 or 3), ``start``, ``orientation`` (default ``[0.0]`` in 2D; a quaternion
+            x, y, z, w is required in 3D), ``scene``, ``pattern`` and optional ``params``.
+            Interpolations are resolved.
+        control_dt: control period [s], used for pattern segments given in ``steps``.
+        key: configuration key of ``task_cfg`` for error messages.
+
+    Raises:
+        ConfigError: on unknown or missing keys and invalid values, naming the full key.
+    """
+    cfg = _to_dict(key, task_cfg)
+    unknown = [str(k) for k in cfg if k not in TASK_KEYS]
+    if unknown:
+        raise ConfigError(
+            key,
+            f"unknown key(s) {', '.join(map(repr, unknown))}; allowed: {', '.join(TASK_KEYS)}",
+        )
+    for name in _REQUIRED:
+        if cfg.get(name) is None:
+            raise ConfigError(f"{key}.{name}", "missing (required)")
+
+    name = cfg["name"]
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"{key}.name", f"must be a non-empty string, got {name!r}")
+    description = cfg.get("description") or ""
+    if not isinstance(description, str):
+        raise ConfigError(f"{key}.description", f"must be a string, got {description!r}")
+    dim = cfg["dim"]
+    if isinstance(dim, bool) or dim not in (2, 3):
+        raise ConfigError(f"{key}.dim", f"unknown value {dim!r}; allowed: 2, 3")
+    dim = int(dim)
+    start = check_vector(f"{key}.start", cfg["start"], dim)
+    scene = cfg["scene"]
+    if not isinstance(scene, Mapping):
+        raise ConfigError(f"{key}.scene", f"must be a mapping, got {type(scene).__name__}")
+    params = cfg.get("params") or {}
+    if not isinstance(params, Mapping):
+        raise ConfigError(f"{key}.params", f"must be a mapping, got {type(params).__name__}")
+    orientation = cfg.get("orientation")
+    if orientation is not None:
+        check_vector(f"{key}.orientation", orientation, 1 if dim == 2 else 4)
+
+    pattern = build_pattern(
+        cfg["pattern"], start, control_dt, key=f"{key}.pattern", orientation=orientation
+    )
+    return Task(
+        name=name,
+        dim=dim,
+        start=start,
+        scene=dict(scene),
+        pattern=pattern,
+        description=description,
+        params=dict(params),
+    )

@@ -1,0 +1,607 @@
+"""Target motion patterns P: sequences of smooth pose (and force) target segments.
+
+Seed A (§3, opening) takes the target pattern P as a sequence of mappings from time to
+end-effector pose and force, split into segments that are each "smooth, continuous, and
+jerk-free"; a change of segment comes with a change in the direction of force/motion control.
+Here every segment is timed with the minimum-jerk polynomial
+
+    s(τ) = 10 τ³ − 15 τ⁴ + 6 τ⁵,   τ = t / T,
+
+so position, velocity and acceleration are continuous everywhere and velocity and acceleration
+are zero at both ends of each segment (a jerk-free start and stop). Velocity and acceleration
+are analytic (chain rule through s(τ); arcs add the centripetal term).
+
+Every segment is evaluated as a small matrix product ``C(t) @ B``: ``B`` (k × n) holds constant
+basis vectors fixed when the segment is built and ``C(t)`` (3 × k) holds scalar coefficients for
+position, velocity and acceleration. This keeps :meth:`MotionPattern.sample`, which runs every
+control step, down to a few microseconds.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ccm.errors import (
+    ConfigError,
+    check_finite,
+    check_int_positive,
+    check_nonneg,
+    check_positive,
+    check_vector,
+)
+from ccm.types import TargetSample
+
+__all__ = [
+    "ArcSegment",
+    "HoldSegment",
+    "LineSegment",
+    "MotionPattern",
+    "Segment",
+    "build_pattern",
+    "min_jerk",
+]
+
+#: Relative tolerance for "start − center is perpendicular to the arc normal" (3D arcs).
+_PLANE_TOL = 1e-6
+
+
+def min_jerk(tau: Any, duration: float) -> tuple[Any, Any, Any]:
+    """Minimum-jerk time scaling and its time derivatives.
+
+    Works on floats and numpy arrays alike (no clipping here; callers pass τ in [0, 1]).
+
+    Args:
+        tau: normalised time t / T.
+        duration: segment duration T [s].
+
+    Returns:
+        ``(s, ds/dt, d²s/dt²)`` with s(τ) = 10τ³ − 15τ⁴ + 6τ⁵.
+    """
+    tau2 = tau * tau
+    one_minus = 1.0 - tau
+    s = tau2 * tau * (10.0 + tau * (6.0 * tau - 15.0))
+    sd = 30.0 * tau2 * one_minus * one_minus / duration
+    sdd = 60.0 * tau * one_minus * (1.0 - 2.0 * tau) / (duration * duration)
+    return s, sd, sdd
+
+
+def _readonly(arr: np.ndarray) -> np.ndarray:
+    arr.setflags(write=False)
+    return arr
+
+
+def _unit(key: str, value: Any, dim: int) -> np.ndarray:
+    vec = check_vector(key, value, dim)
+    norm = float(np.linalg.norm(vec))
+    if norm == 0.0:
+        raise ConfigError(key, f"must be a non-zero vector, got {value!r}")
+    return vec / norm
+
+
+class Segment(ABC):
+    """One smooth piece of a target pattern (seed A §3: a segment of P).
+
+    Subclasses fix a basis ``B`` (k × n) at construction and give the 3 × k coefficient matrix
+    ``C(t)`` (rows: position, velocity, acceleration); ``C(t) @ B`` is the sampled motion.
+
+    Args:
+        duration: segment duration T [s], > 0.
+        force_dir: direction along which force is regulated instead of position (hybrid
+            force-motion control, seed A Eq. 1), normalised here; ``None`` for pure motion.
+        force_mag: desired force the end-effector exerts on the environment along
+            ``force_dir`` [N], >= 0; must be 0 when ``force_dir`` is ``None``.
+        name: optional label (for logs and plots).
+        key: configuration key used in error messages.
+    """
+
+    def __init__(
+        self,
+        duration: float,
+        dim: int,
+        force_dir: Sequence[float] | np.ndarray | None,
+        force_mag: float,
+        name: str | None,
+        key: str,
+    ) -> None:
+        self.key = key
+        self.dim = dim
+        self.duration = check_positive(f"{key}.duration", duration)
+        self.force_mag = check_nonneg(f"{key}.force.magnitude", force_mag)
+        if force_dir is None:
+            if self.force_mag != 0.0:
+                raise ConfigError(
+                    f"{key}.force.direction", "required when the force magnitude is non-zero"
+                )
+            self.force_dir: np.ndarray | None = None
+        else:
+            self.force_dir = _readonly(_unit(f"{key}.force.direction", force_dir, dim))
+        self.name = name
+        self._basis: np.ndarray = np.zeros((1, dim))
+
+    @abstractmethod
+    def _coeffs(self, t_local: float) -> list[list[float]]:
+        """3 × k coefficients at ``t_local`` in [0, duration] (scalar math, no numpy)."""
+
+    @abstractmethod
+    def _coeffs_many(self, t_local: np.ndarray) -> np.ndarray:
+        """Vectorised :meth:`_coeffs`: shape (N, 3, k) for ``t_local`` of shape (N,)."""
+
+    def _finish(self) -> None:
+        self._basis = _readonly(self._basis)
+        self.start: np.ndarray = _readonly(self._eval(0.0)[0].copy())
+        self.end: np.ndarray = _readonly(self._eval(self.duration)[0].copy())
+
+    def _eval(self, t_local: float) -> np.ndarray:
+        return np.array(self._coeffs(t_local)) @ self._basis
+
+    def sample(self, t_local: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration at local time ``t_local`` (clipped to [0, T]).
+
+        Returns:
+            ``(pos, vel, acc)``, each of shape (n,), world frame, SI units.
+        """
+        t_local = min(max(float(t_local), 0.0), self.duration)
+        out = self._eval(t_local)
+        return out[0], out[1], out[2]
+
+    def sample_many(self, t_local: np.ndarray) -> np.ndarray:
+        """Vectorised :meth:`sample`; returns shape (N, 3, n) (pos, vel, acc per time)."""
+        tl = np.clip(np.asarray(t_local, dtype=float), 0.0, self.duration)
+        return self._coeffs_many(tl) @ self._basis
+
+    def __repr__(self) -> str:
+        force = "" if self.force_dir is None else f", force={self.force_mag} N"
+        return (
+            f"{type(self).__name__}(start={self.start.tolist()}, end={self.end.tolist()}, "
+            f"duration={self.duration}{force})"
+        )
+
+
+class LineSegment(Segment):
+    """Straight line from ``start`` to ``end`` with minimum-jerk timing.
+
+    Args:
+        start, end: endpoints, world frame [m], same length n (2 or 3).
+        duration: T [s].
+        force_dir, force_mag, name, key: see :class:`Segment`.
+    """
+
+    def __init__(
+        self,
+        start: Sequence[float] | np.ndarray,
+        end: Sequence[float] | np.ndarray,
+        duration: float,
+        force_dir: Sequence[float] | np.ndarray | None = None,
+        force_mag: float = 0.0,
+        name: str | None = None,
+        *,
+        key: str = "segment",
+    ) -> None:
+        p0 = check_vector(f"{key}.start", start, (2, 3))
+        p1 = check_vector(f"{key}.to", end, p0.shape[0])
+        super().__init__(duration, p0.shape[0], force_dir, force_mag, name, key)
+        # pos = (1 - s) p0 + s p1 is exact at both ends (s = 0 and s = 1 are exact floats).
+        self._basis = np.stack([p0, p1])
+        self._finish()
+
+    def _coeffs(self, t_local: float) -> list[list[float]]:
+        s, sd, sdd = min_jerk(t_local / self.duration, self.duration)
+        return [[1.0 - s, s], [-sd, sd], [-sdd, sdd]]
+
+    def _coeffs_many(self, t_local: np.ndarray) -> np.ndarray:
+        s, sd, sdd = min_jerk(t_local / self.duration, self.duration)
+        rows = [np.stack([1.0 - s, s], -1), np.stack([-sd, sd], -1), np.stack([-sdd, sdd], -1)]
+        return np.stack(rows, 1)
+
+
+class ArcSegment(Segment):
+    """Circular arc: ``start`` rotated about ``center`` by ``sweep_rad`` with min-jerk timing.
+
+    The angle follows θ(t) = sweep · s(t/T). Positive sweep is counter-clockwise about +z in 2D,
+    or about ``normal`` in 3D (right-hand rule). The radius is |start − center|; in 3D,
+    ``start − center`` must be perpendicular to ``normal``. Acceleration includes the
+    tangential (θ̈) and centripetal (θ̇²) terms.
+
+    Args:
+        start: first point of the arc [m], shape (n,).
+        center: circle centre [m], shape (n,).
+        sweep_rad: signed swept angle [rad], non-zero (several turns allowed).
+        duration: T [s].
+        normal: 3D only: rotation axis (normalised here; default +z). Must be ``None`` in 2D.
+        force_dir, force_mag, name, key: see :class:`Segment`.
+    """
+
+    def __init__(
+        self,
+        start: Sequence[float] | np.ndarray,
+        center: Sequence[float] | np.ndarray,
+        sweep_rad: float,
+        duration: float,
+        normal: Sequence[float] | np.ndarray | None = None,
+        force_dir: Sequence[float] | np.ndarray | None = None,
+        force_mag: float = 0.0,
+        name: str | None = None,
+        *,
+        key: str = "segment",
+        sweep_key: str = "sweep_rad",
+    ) -> None:
+        p0 = check_vector(f"{key}.start", start, (2, 3))
+        dim = p0.shape[0]
+        c = check_vector(f"{key}.center", center, dim)
+        self.sweep = check_finite(f"{key}.{sweep_key}", sweep_rad)
+        if self.sweep == 0.0:
+            raise ConfigError(f"{key}.{sweep_key}", "must be non-zero")
+        super().__init__(duration, dim, force_dir, force_mag, name, key)
+        r0 = p0 - c
+        self.radius = float(np.linalg.norm(r0))
+        if self.radius <= 1e-12:
+            raise ConfigError(
+                f"{key}.center",
+                f"zero-radius arc: the centre {c.tolist()} equals the start point",
+            )
+        if dim == 2:
+            if normal is not None:
+                raise ConfigError(f"{key}.normal", "only allowed for 3D patterns")
+            k = np.array([0.0, 0.0, 1.0])
+            b = np.array([-r0[1], r0[0]])  # z × r0
+        else:
+            k = _unit(f"{key}.normal", [0.0, 0.0, 1.0] if normal is None else normal, 3)
+            off_plane = abs(float(k @ r0))
+            if off_plane > _PLANE_TOL * self.radius:
+                raise ConfigError(
+                    f"{key}.center",
+                    f"start - center must be perpendicular to the normal {k.tolist()} "
+                    f"(off-plane component {off_plane:.3g} m)",
+                )
+            b = np.cross(k, r0)
+        self.center = _readonly(c.copy())
+        self.normal = _readonly(k)
+        # Rodrigues' rotation of r0 about k: the component of r0 along k (at most a rounding
+        # residue after the check above) stays fixed, the perpendicular part rotates.
+        # Basis rows: fixed offset, perpendicular radius vector at θ = 0, its 90° rotation.
+        par = np.zeros(2) if dim == 2 else float(k @ r0) * k
+        self._basis = np.stack([c + par, r0 - par, b])
+        self._finish()
+        self.start = _readonly(p0.copy())
+
+    def _coeffs(self, t_local: float) -> list[list[float]]:
+        s, sd, sdd = min_jerk(t_local / self.duration, self.duration)
+        th, thd, thdd = self.sweep * s, self.sweep * sd, self.sweep * sdd
+        c, si = math.cos(th), math.sin(th)
+        thd2 = thd * thd
+        return [
+            [1.0, c, si],
+            [0.0, -thd * si, thd * c],
+            [0.0, -thdd * si - thd2 * c, thdd * c - thd2 * si],
+        ]
+
+    def _coeffs_many(self, t_local: np.ndarray) -> np.ndarray:
+        s, sd, sdd = min_jerk(t_local / self.duration, self.duration)
+        th, thd, thdd = self.sweep * s, self.sweep * sd, self.sweep * sdd
+        c, si = np.cos(th), np.sin(th)
+        thd2 = thd * thd
+        one, zero = np.ones_like(s), np.zeros_like(s)
+        rows = [
+            np.stack([one, c, si], -1),
+            np.stack([zero, -thd * si, thd * c], -1),
+            np.stack([zero, -thdd * si - thd2 * c, thdd * c - thd2 * si], -1),
+        ]
+        return np.stack(rows, 1)
+
+
+class HoldSegment(Segment):
+    """Stay at ``position`` for ``duration`` (zero velocity and acceleration).
+
+    Args:
+        position: held point [m], shape (n,).
+        duration: T [s].
+        force_dir, force_mag, name, key: see :class:`Segment`.
+    """
+
+    def __init__(
+        self,
+        position: Sequence[float] | np.ndarray,
+        duration: float,
+        force_dir: Sequence[float] | np.ndarray | None = None,
+        force_mag: float = 0.0,
+        name: str | None = None,
+        *,
+        key: str = "segment",
+    ) -> None:
+        p = check_vector(f"{key}.position", position, (2, 3))
+        super().__init__(duration, p.shape[0], force_dir, force_mag, name, key)
+        self._basis = p[None, :].copy()
+        self._finish()
+
+    def _coeffs(self, t_local: float) -> list[list[float]]:
+        return [[1.0], [0.0], [0.0]]
+
+    def _coeffs_many(self, t_local: np.ndarray) -> np.ndarray:
+        out = np.zeros((t_local.shape[0], 3, 1))
+        out[:, 0, 0] = 1.0
+        return out
+
+
+class MotionPattern:
+    """A target motion pattern P: consecutive segments plus a constant orientation target.
+
+    Seed A §3: P maps time to end-effector pose and (where force is controlled) force targets.
+    Segments must join: each starts where the previous one ended.
+
+    Args:
+        segments: non-empty sequence of segments of the same dimension.
+        orientation: 2D: angle [rad], shape (1,); 3D: quaternion (x, y, z, w), normalised here.
+        key: configuration key used in error messages.
+    """
+
+    def __init__(
+        self,
+        segments: Sequence[Segment],
+        orientation: Sequence[float] | np.ndarray,
+        *,
+        key: str = "pattern",
+    ) -> None:
+        if len(segments) == 0:
+            raise ConfigError(key, "must contain at least one segment")
+        self.segments: tuple[Segment, ...] = tuple(segments)
+        self.dim = self.segments[0].dim
+        for i, (prev, seg) in enumerate(zip(self.segments[:-1], self.segments[1:], strict=True)):
+            if seg.dim != self.dim:
+                raise ConfigError(
+                    f"{key}[{i + 1}]", f"dimension {seg.dim} differs from the pattern's {self.dim}"
+                )
+            gap = float(np.linalg.norm(seg.start - prev.end))
+            if gap > 1e-9:
+                raise ConfigError(
+                    f"{key}[{i + 1}]",
+                    f"starts at {seg.start.tolist()}, {gap:.3g} m from the previous end "
+                    f"{prev.end.tolist()}",
+                )
+        okey = (key.rsplit(".", 1)[0] + "." if "." in key else "") + "orientation"
+        if self.dim == 2:
+            self.orientation = _readonly(check_vector(okey, orientation, 1))
+        else:
+            self.orientation = _readonly(_unit(okey, orientation, 4))
+        starts = [0.0]
+        for seg in self.segments:
+            starts.append(starts[-1] + seg.duration)
+        self.duration: float = starts[-1]
+        #: start time of each segment [s] (ascending; len == number of segments)
+        self.start_times: tuple[float, ...] = tuple(starts[:-1])
+        self._starts = list(self.start_times)
+        self._starts_arr = np.asarray(self._starts)
+        self.start: np.ndarray = self.segments[0].start
+        self.end: np.ndarray = self.segments[-1].end
+        last = self.segments[-1]
+        zeros = np.zeros(self.dim)
+        self._final = (
+            _readonly(self.end.copy()),
+            _readonly(zeros.copy()),
+            _readonly(zeros.copy()),
+        )
+        self._final_force = (last.force_dir, last.force_mag)
+
+    def __len__(self) -> int:
+        return len(self.segments)
+
+    def segment_index(self, t: float) -> int:
+        """Index of the segment active at time ``t`` (a boundary belongs to the later segment)."""
+        i = bisect.bisect_right(self._starts, t) - 1
+        return 0 if i < 0 else i
+
+    def sample(self, t: float) -> TargetSample:
+        """Evaluate P at time ``t`` [s] (clipped to [0, duration]; ``TargetSample.t`` is ``t``).
+
+        At and after the end the final pose is returned with zero velocity and acceleration,
+        the last segment's force target and ``done=True``.
+        """
+        if t >= self.duration:
+            n = len(self.segments) - 1
+            fd, fm = self._final_force
+            pos, vel, acc = self._final
+            return TargetSample(
+                t, pos.copy(), vel.copy(), acc.copy(), self.orientation, fd, fm, n, True
+            )
+        if t >= 0.0:
+            t_eval = t
+            i = bisect.bisect_right(self._starts, t) - 1
+        elif t < 0.0:
+            t_eval = 0.0
+            i = 0
+        else:
+            raise ValueError(f"MotionPattern.sample: t must be a number, got {t!r}")
+        seg = self.segments[i]
+        out = np.array(seg._coeffs(t_eval - self._starts[i])) @ seg._basis
+        return TargetSample(
+            t, out[0], out[1], out[2], self.orientation, seg.force_dir, seg.force_mag, i, False
+        )
+
+    def sample_many(self, ts: Sequence[float] | np.ndarray) -> dict[str, np.ndarray]:
+        """Vectorised :meth:`sample` for plotting and analysis.
+
+        Args:
+            ts: times [s], shape (N,).
+
+        Returns:
+            dict with ``t`` (N,), ``position``/``velocity``/``acceleration`` (N, n),
+            ``segment`` (N,) int, ``done`` (N,) bool, ``force_active`` (N,) bool,
+            ``force_dir`` (N, n) (zeros where no force is controlled) and ``force_mag`` (N,).
+        """
+        t = np.asarray(ts, dtype=float).reshape(-1)
+        tc = np.clip(t, 0.0, self.duration)
+        if np.any(np.isnan(t)):
+            raise ValueError("MotionPattern.sample_many: times must not be NaN")
+        idx = np.searchsorted(self._starts_arr, tc, side="right") - 1
+        idx = np.clip(idx, 0, len(self.segments) - 1)
+        pva = np.zeros((t.shape[0], 3, self.dim))
+        force_dir = np.zeros((t.shape[0], self.dim))
+        force_mag = np.zeros(t.shape[0])
+        force_active = np.zeros(t.shape[0], dtype=bool)
+        for i, seg in enumerate(self.segments):
+            m = idx == i
+            if not np.any(m):
+                continue
+            pva[m] = seg.sample_many(tc[m] - self._starts[i])
+            if seg.force_dir is not None:
+                force_dir[m] = seg.force_dir
+                force_mag[m] = seg.force_mag
+                force_active[m] = True
+        done = t >= self.duration
+        pva[done, 0] = self.end
+        pva[done, 1:] = 0.0
+        return {
+            "t": t,
+            "position": pva[:, 0],
+            "velocity": pva[:, 1],
+            "acceleration": pva[:, 2],
+            "segment": idx,
+            "done": done,
+            "force_active": force_active,
+            "force_dir": force_dir,
+            "force_mag": force_mag,
+        }
+
+    def __repr__(self) -> str:
+        return f"MotionPattern({len(self.segments)} segments, duration={self.duration} s)"
+
+
+_TYPES = ("line", "arc", "hold")
+_COMMON_KEYS = ("type", "duration", "steps", "force", "name")
+_TYPE_KEYS: dict[str, tuple[str, ...]] = {
+    "line": ("to",),
+    "arc": ("center", "sweep_deg", "normal"),
+    "hold": (),
+}
+_FORCE_KEYS = ("direction", "magnitude")
+
+
+def _check_keys(key: str, entry: Mapping[str, Any], allowed: Sequence[str]) -> None:
+    unknown = [str(k) for k in entry if k not in allowed]
+    if unknown:
+        raise ConfigError(
+            key, f"unknown key(s) {', '.join(map(repr, unknown))}; allowed: {', '.join(allowed)}"
+        )
+
+
+def _require(key: str, entry: Mapping[str, Any], name: str) -> Any:
+    if name not in entry or entry[name] is None:
+        raise ConfigError(f"{key}.{name}", "missing (required)")
+    return entry[name]
+
+
+def _parse_duration(key: str, entry: Mapping[str, Any], control_dt: float) -> float:
+    has_dur = entry.get("duration") is not None
+    has_steps = entry.get("steps") is not None
+    if has_dur == has_steps:
+        raise ConfigError(
+            key, "give exactly one of 'duration' [s] or 'steps' (control steps), not both/neither"
+        )
+    if has_dur:
+        return check_positive(f"{key}.duration", entry["duration"])
+    return check_int_positive(f"{key}.steps", entry["steps"]) * control_dt
+
+
+def _parse_force(key: str, value: Any, dim: int) -> tuple[np.ndarray | None, float]:
+    if value is None:
+        return None, 0.0
+    if not isinstance(value, Mapping):
+        raise ConfigError(key, f"must be a mapping with keys {', '.join(_FORCE_KEYS)}")
+    _check_keys(key, value, _FORCE_KEYS)
+    direction = _unit(f"{key}.direction", _require(key, value, "direction"), dim)
+    magnitude = check_nonneg(f"{key}.magnitude", _require(key, value, "magnitude"))
+    return direction, magnitude
+
+
+def build_pattern(
+    spec: Sequence[Mapping[str, Any]],
+    start: Sequence[float] | np.ndarray,
+    control_dt: float,
+    key: str = "task.pattern",
+    *,
+    orientation: Sequence[float] | np.ndarray | None = None,
+) -> MotionPattern:
+    """Build a :class:`MotionPattern` from its YAML description (a list of segment mappings).
+
+    Each segment starts where the previous one ended (the first at ``start``). Entries::
+
+        {type: line, to: [x, y(, z)], duration: 1.0}
+        {type: arc, center: [...], sweep_deg: 360, duration: 6.0}   # 3D: optional normal
+        {type: hold, duration: 0.5}
+
+    Any entry may give ``steps: N`` instead of ``duration`` (duration = N · control_dt),
+    ``force: {direction: [...], magnitude: N}`` (hybrid force-motion target, seed A Eq. 1) and
+    ``name``.
+
+    Args:
+        spec: the segment list.
+        start: pattern start position [m], shape (2,) or (3,).
+        control_dt: control period [s] used to convert ``steps``.
+        key: configuration key of ``spec``, used in error messages.
+        orientation: constant orientation target; default ``[0.0]`` in 2D, required in 3D
+            (quaternion x, y, z, w).
+
+    Raises:
+        ConfigError: naming the offending key (e.g. ``task.pattern[2].duration``).
+    """
+    parent = key.rsplit(".", 1)[0] + "." if "." in key else ""
+    p = check_vector(f"{parent}start", start, (2, 3))
+    dim = p.shape[0]
+    control_dt = check_positive("control_dt", control_dt)
+    if orientation is None:
+        if dim == 3:
+            raise ConfigError(
+                f"{parent}orientation", "required for 3D patterns (quaternion x, y, z, w)"
+            )
+        orientation = [0.0]
+    if isinstance(spec, str | bytes) or not isinstance(spec, Sequence):
+        raise ConfigError(key, f"must be a list of segments, got {type(spec).__name__}")
+    if len(spec) == 0:
+        raise ConfigError(key, "must contain at least one segment")
+
+    segments: list[Segment] = []
+    for i, entry in enumerate(spec):
+        k = f"{key}[{i}]"
+        if not isinstance(entry, Mapping):
+            raise ConfigError(k, f"must be a mapping, got {entry!r}")
+        kind = entry.get("type")
+        if kind not in _TYPES:
+            shown = "missing" if kind is None else f"unknown value {kind!r}"
+            raise ConfigError(f"{k}.type", f"{shown}; allowed: {', '.join(_TYPES)}")
+        _check_keys(k, entry, _COMMON_KEYS + _TYPE_KEYS[kind])
+        duration = _parse_duration(k, entry, control_dt)
+        force_dir, force_mag = _parse_force(f"{k}.force", entry.get("force"), dim)
+        name = entry.get("name")
+        name = None if name is None else str(name)
+        seg: Segment
+        if kind == "line":
+            seg = LineSegment(
+                p, _require(k, entry, "to"), duration, force_dir, force_mag, name, key=k
+            )
+        elif kind == "arc":
+            normal = entry.get("normal")
+            if normal is not None and dim == 2:
+                raise ConfigError(f"{k}.normal", "only allowed for 3D patterns")
+            sweep_deg = check_finite(f"{k}.sweep_deg", _require(k, entry, "sweep_deg"))
+            seg = ArcSegment(
+                p,
+                _require(k, entry, "center"),
+                math.radians(sweep_deg),
+                duration,
+                normal,
+                force_dir,
+                force_mag,
+                name,
+                key=k,
+                sweep_key="sweep_deg",
+            )
+        else:
+            seg = HoldSegment(p, duration, force_dir, force_mag, name, key=k)
+        segments.append(seg)
+        p = seg.end
+    return MotionPattern(segments, orientation, key=key)

@@ -1,0 +1,108 @@
+"""Unit tests of the fixed impedance law (Eq. 1, seed A) without a simulator."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ccm.control.impedance import FixedImpedance, damping_from_rule
+from ccm.control.registry import make_controller
+from ccm.errors import ConfigError
+from ccm.types import Observation, TargetSample
+
+
+def obs(pos=(0.0, 0.0), vel=(0.0, 0.0), force=(0.0, 0.0)) -> Observation:
+    return Observation(
+        t=0.0,
+        position=np.array(pos, float),
+        orientation=np.zeros(1),
+        lin_vel=np.array(vel, float),
+        ang_vel=np.zeros(1),
+        force=np.array(force, float),
+        torque=np.zeros(1),
+    )
+
+
+def target(pos=(0.0, 0.0), vel=(0.0, 0.0), acc=(0.0, 0.0), fdir=None, fmag=0.0) -> TargetSample:
+    return TargetSample(
+        t=0.0,
+        position=np.array(pos, float),
+        velocity=np.array(vel, float),
+        acceleration=np.array(acc, float),
+        orientation=np.zeros(1),
+        force_dir=None if fdir is None else np.array(fdir, float),
+        force_mag=fmag,
+    )
+
+
+def make(**kw) -> FixedImpedance:
+    c = FixedImpedance(**kw)
+    c.reset(2, 0.001)
+    return c
+
+
+def test_spring_damper_law() -> None:
+    c = make(stiffness=100.0, damping_rule="fixed", damping=10.0, inertia_feedforward=False)
+    u = c.step(obs(pos=(0.01, -0.02), vel=(0.1, 0.0)), target())
+    np.testing.assert_allclose(u.force, [100 * -0.01 + 10 * -0.1, 100 * 0.02], rtol=1e-12)
+
+
+def test_per_axis_stiffness_and_inertial_feedforward() -> None:
+    c = make(stiffness=[100.0, 400.0], damping_rule="fixed", damping=0.0, mass_kg=2.0)
+    u = c.step(obs(pos=(0.01, 0.01)), target(acc=(1.0, -1.0)))
+    np.testing.assert_allclose(u.force, [-1.0 + 2.0, -4.0 - 2.0], rtol=1e-12)
+
+
+def test_damping_rules() -> None:
+    assert damping_from_rule(400.0, "critical", 1.0, 1.0, 0.0) == pytest.approx(40.0)
+    assert damping_from_rule(400.0, "paper", 1.0, 1.0, 0.0) == pytest.approx(5.0)
+    assert damping_from_rule(400.0, "fixed", 1.0, 1.0, 7.0) == pytest.approx(7.0)
+
+
+def test_force_direction_replaces_position_control() -> None:
+    """Along d the law regulates force; position error along d is ignored."""
+    c = make(
+        stiffness=1000.0, force_kp=0.0, force_ki=0.0, force_damping=0.0, inertia_feedforward=False
+    )
+    # 5 cm position error along -y (the force direction) must not produce any force.
+    u = c.step(obs(pos=(0.0, 0.05)), target(fdir=(0.0, -1.0), fmag=10.0))
+    np.testing.assert_allclose(u.force, [0.0, -10.0], atol=1e-12)
+
+
+def test_force_feedback_sign() -> None:
+    """In contact the sensor reads +y when pushing down; too little push -> push harder."""
+    c = make(force_kp=1.0, force_ki=0.0, force_damping=0.0, inertia_feedforward=False)
+    weak = c.step(obs(force=(0.0, 4.0)), target(fdir=(0.0, -1.0), fmag=10.0))
+    strong = c.step(obs(force=(0.0, 16.0)), target(fdir=(0.0, -1.0), fmag=10.0))
+    assert weak.force[1] < -10.0 < strong.force[1]
+    assert c.signals()["force_error_N"] == pytest.approx(-6.0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "key"),
+    [
+        ({"stiffness": -1.0}, "controller.stiffness"),
+        ({"stiffness": float("nan")}, "controller.stiffness"),
+        ({"damping_rule": "magic"}, "controller.damping_rule"),
+        ({"force_kp": -0.1}, "controller.force_kp"),
+        ({"mass_kg": 0.0}, "controller.mass_kg"),
+    ],
+)
+def test_bad_gains_name_the_key(kwargs: dict, key: str) -> None:
+    with pytest.raises(ConfigError) as err:
+        FixedImpedance(**kwargs)
+    assert err.value.key == key
+    assert "\n" not in str(err.value)
+
+
+def test_registry_rejects_unknown_type_and_key() -> None:
+    with pytest.raises(ConfigError, match="controller.type"):
+        make_controller({"type": "nope"})
+    with pytest.raises(ConfigError, match="controller.stifness"):
+        make_controller({"type": "fixed_impedance", "stifness": 10.0})
+
+
+def test_stiffness_dimension_checked_at_reset() -> None:
+    c = FixedImpedance(stiffness=[1.0, 2.0, 3.0])
+    with pytest.raises(ConfigError, match="controller.stiffness"):
+        c.reset(2, 0.001)
