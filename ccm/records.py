@@ -37,40 +37,22 @@ def write_json_atomic(path: Path, data: Any) -> None:
 
 
 class TrialRecorder:
-    """Preallocated per-step log of one trial: target, state, wrench, command, signals, truth.
+    """Per-step log of one trial: target, state, wrench, command, signals, truth.
 
-    Columns (units in the docs of :mod:`ccm.types`): ``t``, ``segment``, ``target_pos_*``,
-    ``target_vel_*``, ``pos_*``, ``vel_*``, ``force_*`` (measured), ``torque_*`` (measured),
-    ``true_force_*``, ``contact_force_*``, ``cmd_force_*``, ``cmd_torque_*``, ``force_dir_*``,
-    ``force_target_N``, ``n_contacts``, the controller's signals and ``truth_*`` extras.
+    ``record`` only keeps references (it runs every control step, so it must be cheap); the
+    table is assembled column-wise when first read. Columns (units in :mod:`ccm.types`):
+    ``t``, ``segment``, ``target_pos_*``, ``target_vel_*``, ``pos_*``, ``vel_*``, ``force_*``
+    (measured), ``torque_*`` (measured), ``true_force_*``, ``contact_force_*``,
+    ``cmd_force_*``, ``cmd_torque_*``, ``force_dir_*``, ``force_target_N``, ``n_contacts``,
+    the controller's signals and ``truth_*`` extras.
     """
 
-    def __init__(
-        self,
-        capacity: int,
-        dim: int,
-        signal_keys: Sequence[str],
-        extra_keys: Sequence[str],
-    ) -> None:
-        ax = AXES[:dim]
-        rot = ROT_AXES_2D if dim == 2 else ROT_AXES_3D
+    def __init__(self, dim: int, signal_keys: Sequence[str], extra_keys: Sequence[str]) -> None:
         self.dim = dim
         self.signal_keys = list(signal_keys)
         self.extra_keys = list(extra_keys)
-        self.columns: list[str] = ["t", "segment"]
-        for prefix in ("target_pos", "target_vel", "pos", "vel", "force"):
-            self.columns += [f"{prefix}_{a}" for a in ax]
-        self.columns += [f"torque_{a}" for a in rot]
-        for prefix in ("true_force", "contact_force", "cmd_force"):
-            self.columns += [f"{prefix}_{a}" for a in ax]
-        self.columns += [f"cmd_torque_{a}" for a in rot]
-        self.columns += [f"force_dir_{a}" for a in ax]
-        self.columns += ["force_target_N", "n_contacts"]
-        self.columns += self.signal_keys
-        self.columns += [f"truth_{k}" for k in self.extra_keys]
-        self._data = np.full((capacity, len(self.columns)), np.nan)
-        self._n = 0
-        self._zeros = np.zeros(dim)
+        self._rows: list[tuple[Observation, TargetSample, Command, StepInfo, Mapping]] = []
+        self._table: dict[str, np.ndarray] | None = None
 
     def record(
         self,
@@ -81,50 +63,67 @@ class TrialRecorder:
         signals: Mapping[str, float],
     ) -> None:
         """Append one control step (the state ``obs`` at which ``cmd`` was computed)."""
-        fdir = target.force_dir if target.force_dir is not None else self._zeros
-        row = np.concatenate(
-            (
-                (obs.t, target.segment),
-                target.position,
-                target.velocity,
-                obs.position,
-                obs.lin_vel,
-                obs.force,
-                obs.torque,
-                info.true_force,
-                info.contact_force,
-                cmd.force,
-                cmd.torque,
-                fdir,
-                (target.force_mag if target.force_dir is not None else 0.0, info.n_contacts),
-                [signals.get(k, np.nan) for k in self.signal_keys],
-                [info.extra.get(k, np.nan) for k in self.extra_keys],
-            )
-        )
-        self._data[self._n] = row
-        self._n += 1
+        self._rows.append((obs, target, cmd, info, signals))
+        self._table = None
 
     def __len__(self) -> int:
-        return self._n
+        return len(self._rows)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The recorded columns as a dict of 1-D arrays (views)."""
-        data = self._data[: self._n]
-        return {name: data[:, i] for i, name in enumerate(self.columns)}
+        """The recorded columns as a dict of 1-D arrays, in column order."""
+        if self._table is None:
+            self._table = self._assemble()
+        return self._table
+
+    def _assemble(self) -> dict[str, np.ndarray]:
+        rows = self._rows
+        ax = AXES[: self.dim]
+        rot = ROT_AXES_2D if self.dim == 2 else ROT_AXES_3D
+        zeros = np.zeros(self.dim)
+        out: dict[str, np.ndarray] = {
+            "t": np.array([r[0].t for r in rows], dtype=float),
+            "segment": np.array([r[1].segment for r in rows], dtype=float),
+        }
+
+        def put(prefix: str, names: Sequence[str], values: list[np.ndarray]) -> None:
+            block = np.array(values, dtype=float).reshape(len(rows), len(names))
+            for i, name in enumerate(names):
+                out[f"{prefix}_{name}"] = block[:, i]
+
+        put("target_pos", ax, [r[1].position for r in rows])
+        put("target_vel", ax, [r[1].velocity for r in rows])
+        put("pos", ax, [r[0].position for r in rows])
+        put("vel", ax, [r[0].lin_vel for r in rows])
+        put("force", ax, [r[0].force for r in rows])
+        put("torque", rot, [r[0].torque for r in rows])
+        put("true_force", ax, [r[3].true_force for r in rows])
+        put("contact_force", ax, [r[3].contact_force for r in rows])
+        put("cmd_force", ax, [r[2].force for r in rows])
+        put("cmd_torque", rot, [r[2].torque for r in rows])
+        put("force_dir", ax, [zeros if r[1].force_dir is None else r[1].force_dir for r in rows])
+        out["force_target_N"] = np.array(
+            [0.0 if r[1].force_dir is None else r[1].force_mag for r in rows], dtype=float
+        )
+        out["n_contacts"] = np.array([r[3].n_contacts for r in rows], dtype=float)
+        for k in self.signal_keys:
+            out[k] = np.array([r[4].get(k, np.nan) for r in rows], dtype=float)
+        for k in self.extra_keys:
+            out[f"truth_{k}"] = np.array([r[3].extra.get(k, np.nan) for r in rows], dtype=float)
+        return out
+
+    @property
+    def columns(self) -> list[str]:
+        """Column names in file order."""
+        return list(self.arrays())
 
     def write_csv(self, path: Path) -> None:
         """Write the log as CSV with a header row (atomic)."""
         import io
 
+        table = self.arrays()
+        data = np.column_stack(list(table.values())) if len(self) else np.empty((0, len(table)))
         buf = io.StringIO()
-        np.savetxt(
-            buf,
-            self._data[: self._n],
-            delimiter=",",
-            header=",".join(self.columns),
-            comments="",
-            fmt="%.9g",
-        )
+        np.savetxt(buf, data, delimiter=",", header=",".join(table), comments="", fmt="%.9g")
         write_atomic(path, buf.getvalue())
 
 

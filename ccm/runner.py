@@ -7,6 +7,7 @@ The runner never changes the working directory; ``summary.json`` is written last
 
 from __future__ import annotations
 
+import gc
 import math
 import re
 import time
@@ -32,6 +33,7 @@ from ccm.records import TrialRecorder, write_json_atomic
 from ccm.sim import make_sim
 from ccm.sim.base import Simulator, check_state_finite
 from ccm.tasks.task import Task, load_task
+from ccm.types import Observation, StepInfo
 
 #: compose(extra_overrides) -> config; provided by the CLI (Hydra compose API)
 ComposeFn = Callable[[Sequence[str]], DictConfig]
@@ -130,18 +132,35 @@ def run_trial(
     progress: Callable[[int], None] | None = None,
 ) -> TrialRecorder:
     """Run one trial: sample P, control, step the simulator, record. Raises on divergence."""
-    sim, task, ctrl = comp.sim, comp.task, comp.controller
-    obs, info = sim.reset(seed=seed)
-    ctrl.reset(task.dim, sim.control_dt)
-    n_steps = max(1, int(math.floor(duration_s / sim.control_dt + 1e-9)))
+    obs, info = comp.sim.reset(seed=seed)
+    comp.controller.reset(comp.task.dim, comp.sim.control_dt)
+    n_steps = max(1, int(math.floor(duration_s / comp.sim.control_dt + 1e-9)))
+    # The loop allocates many small acyclic objects that the recorder keeps; the cyclic
+    # garbage collector would rescan them ever more often, so it is paused for the trial.
+    gc_was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        return _closed_loop(comp, obs, info, n_steps, progress)
+    finally:
+        if gc_was_enabled:
+            gc.enable()
+
+
+def _closed_loop(
+    comp: Components,
+    obs: Observation,
+    info: StepInfo,
+    n_steps: int,
+    progress: Callable[[int], None] | None,
+) -> TrialRecorder:
+    """The per-step loop of :func:`run_trial`."""
+    sim, pattern, ctrl = comp.sim, comp.task.pattern, comp.controller
     max_speed = float(getattr(sim, "max_speed", math.inf))
-    rec: TrialRecorder | None = None
     tick = max(1, n_steps // 100)
+    rec = TrialRecorder(comp.task.dim, list(ctrl.signals()), sorted(info.extra))
     for k in range(n_steps):
-        target = task.pattern.sample(obs.t)
+        target = pattern.sample(obs.t)
         cmd = ctrl.step(obs, target)
-        if rec is None:
-            rec = TrialRecorder(n_steps, task.dim, list(ctrl.signals()), sorted(info.extra))
         rec.record(obs, target, cmd, info, ctrl.signals())
         obs, info = sim.step(cmd)
         reason = check_state_finite(obs, max_speed)
@@ -149,7 +168,6 @@ def run_trial(
             raise SimulationDiverged(reason)
         if progress is not None and (k + 1) % tick == 0:
             progress(tick)
-    assert rec is not None
     return rec
 
 
@@ -196,7 +214,7 @@ def run_experiment(
                     settings["completion_tol_m"],
                 )
                 trials_out.append({"condition": cond.name, "trial": trial, "seed": seed, **metrics})
-                logs.setdefault(cond.name, []).append({k: v.copy() for k, v in arrays.items()})
+                logs.setdefault(cond.name, []).append(arrays)
                 comp.controller.end_trial()
             comp.sim.close()
     finally:

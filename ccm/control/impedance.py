@@ -112,7 +112,10 @@ class FixedImpedance(Controller):
             (dim,),
         ).astype(float)
         self._force_int = 0.0
+        self._zero = np.zeros(dim)
         self._signals = self._blank_signals()
+        self._signals["stiffness_Npm"] = float(np.mean(self._kp))
+        self._signals["damping_Nspm"] = float(np.mean(self._kd))
 
     @staticmethod
     def _blank_signals() -> dict[str, float]:
@@ -138,7 +141,7 @@ class FixedImpedance(Controller):
             self._force_int = 0.0
             self._signals["force_error_N"] = 0.0
             self._signals["force_control"] = 0.0
-            return u_motion, np.zeros_like(u_motion)
+            return u_motion, self._zero
         u_motion = u_motion - d * float(d @ u_motion)
         f_contact = -float(d @ obs.force)  # force the end-effector exerts on the environment
         err = target.force_mag - f_contact
@@ -161,8 +164,6 @@ class FixedImpedance(Controller):
     def step(self, obs: Observation, target: TargetSample) -> Command:
         """Eq. 1 (seed A) with constant K_p, K_d and u_ff = 0."""
         u_motion, u_force = self.motion_force(obs, target, self._kp, self._kd)
-        self._signals["stiffness_Npm"] = float(np.mean(self._kp))
-        self._signals["damping_Nspm"] = float(np.mean(self._kd))
         return Command(force=u_motion + u_force, torque=self.rotation_torque(obs, target))
 
     def signals(self) -> dict[str, float]:

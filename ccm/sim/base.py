@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 
 import numpy as np
@@ -47,11 +48,16 @@ class Simulator(ABC):
 
 
 def check_state_finite(obs: Observation, max_speed: float) -> str | None:
-    """Return a reason string if the state has diverged (NaN/inf or speed above ``max_speed``)."""
-    for name in ("position", "lin_vel", "force"):
-        if not np.all(np.isfinite(getattr(obs, name))):
-            return f"non-finite {name} at t={obs.t:.3f} s"
-    speed = float(np.linalg.norm(obs.lin_vel))
+    """Return a reason string if the state has diverged (NaN/inf or speed above ``max_speed``).
+
+    Called every control step, so the common path is a few float operations.
+    """
+    vel = obs.lin_vel.tolist()
+    if not math.isfinite(sum(obs.position.tolist()) + sum(vel) + sum(obs.force.tolist())):
+        for name in ("position", "lin_vel", "force"):
+            if not np.all(np.isfinite(getattr(obs, name))):
+                return f"non-finite {name} at t={obs.t:.3f} s"
+    speed = math.hypot(*vel)
     if speed > max_speed:
         return (
             f"end-effector speed {speed:.3g} m/s exceeds sim.max_speed={max_speed} m/s "

@@ -143,6 +143,10 @@ class Pymunk2D(Simulator):
             (s.anchor[0], s.anchor[1], s.stiffness, s.rest_length) for s in scene.springs
         ]
         self._comp_fy = scene.ee.mass * scene.gravity if self.config.gravity_compensation else 0.0
+        self._has_viscous = bool(scene.viscous)
+        self._rotates = scene.ee.rotate
+        self._has_static = bool(scene.surfaces or scene.boxes)
+        self._angle0 = float(self.start[2])
 
     @classmethod
     def from_config(
@@ -191,48 +195,56 @@ class Pymunk2D(Simulator):
         body, space = self._body, self._space
         if body is None or space is None:
             raise RuntimeError("Pymunk2D.step() called before reset()")
-        f_cmd = np.asarray(command.force, dtype=float)
-        t_cmd = np.asarray(command.torque, dtype=float)
-        if f_cmd.shape != (2,) or t_cmd.shape != (1,):
+        f_cmd, t_cmd = command.force, command.torque
+        if len(f_cmd) != 2 or len(t_cmd) != 1:
             raise ValueError(
-                f"command must have force (2,) and torque (1,), got {f_cmd.shape}, {t_cmd.shape}"
+                f"command must have force (2,) and torque (1,), got {np.shape(f_cmd)}, "
+                f"{np.shape(t_cmd)}"
             )
-        if not (np.all(np.isfinite(f_cmd)) and np.all(np.isfinite(t_cmd))):
+        cfx, cfy, ctq = float(f_cmd[0]), float(f_cmd[1]), float(t_cmd[0])
+        if not math.isfinite(cfx + cfy + ctq):
             raise SimulationDiverged(
-                f"non-finite command force={f_cmd.tolist()} torque={t_cmd.tolist()} "
-                f"at t={self._steps * self.dt:.3f} s"
+                f"non-finite command force={np.asarray(f_cmd).tolist()} "
+                f"torque={np.asarray(t_cmd).tolist()} at t={self._steps * self.dt:.3f} s"
             )
-        cfx, cfy = float(f_cmd[0]), float(f_cmd[1]) + self._comp_fy
-        ctq = float(t_cmd[0])
+        cfy += self._comp_fy
         dt = self.dt
-        acc = [0.0] * 5  # sum of external fx, fy, torque, contact fx, contact fy
+        sfx = sfy = stq = skx = sky = 0.0  # sums of external fx, fy, torque, contact fx, fy
         n_contacts, mu = 0, -1.0
+        x, y = body.position
+        vx, vy = body.velocity
         for _ in range(self.control_decimation):
-            x, y = body.position
-            vx, vy = body.velocity
             fsx, fsy = self._spring_force(x, y)
-            c = self._viscosity(x, y)
+            c = self._viscosity(x, y) if self._has_viscous else 0.0
             fex, fey = fsx - c * vx, fsy - c * vy
             body.force = (cfx + fex, cfy + fey)
-            body.torque = ctq
+            if self._rotates:
+                body.torque = ctq
             space.step(dt)
-            kfx, kfy, ktq, n_contacts, mu = self._read_contacts(body)
-            acc[0] += fex + kfx
-            acc[1] += fey + kfy
-            acc[2] += ktq
-            acc[3] += kfx
-            acc[4] += kfy
+            if self._has_static:
+                kfx, kfy, ktq, n_contacts, mu = self._read_contacts(body)
+            else:  # nothing to touch: skip the arbiter walk (hot path of contact-free scenes)
+                kfx = kfy = ktq = 0.0
+            sfx += fex + kfx
+            sfy += fey + kfy
+            stq += ktq
+            skx += kfx
+            sky += kfy
             nx, ny = body.position
+            vx, vy = body.velocity
             self._steps += 1
             self._path += math.hypot(nx - x, ny - y)
-            self._check_state(body)
+            x, y = nx, ny
+            if not math.isfinite(x + y + vx + vy):
+                self._check_state(body)
         k = 1.0 / self.control_decimation
         return self._output(
-            np.array([acc[0] * k, acc[1] * k]),
-            np.array([acc[2] * k]),
-            np.array([acc[3] * k, acc[4] * k]),
+            np.array([sfx * k, sfy * k]),
+            np.array([stq * k]),
+            np.array([skx * k, sky * k]),
             n_contacts,
             mu,
+            (x, y, vx, vy),
         )
 
     def close(self) -> None:
@@ -383,25 +395,33 @@ class Pymunk2D(Simulator):
         f_contact: np.ndarray,
         n_contacts: int,
         mu: float,
+        state: tuple[float, float, float, float] | None = None,
     ) -> tuple[Observation, StepInfo]:
+        """Observation and truth for the current state; ``state`` = (x, y, vx, vy) if known.
+
+        The wrench arrays passed in are fresh and not kept, so they are not copied again.
+        """
         body = self._body
         assert body is not None
-        x, y = body.position
-        vx, vy = body.velocity
+        if state is None:
+            (x, y), (vx, vy) = body.position, body.velocity
+        else:
+            x, y, vx, vy = state
+        angle, omega = (body.angle, body.angular_velocity) if self._rotates else (self._angle0, 0.0)
         f_meas, t_meas = self.sensor.measure(f_true, t_true)
         obs = Observation(
             t=self._steps * self.dt,
             position=np.array([x, y]),
-            orientation=np.array([body.angle]),
+            orientation=np.array([angle]),
             lin_vel=np.array([vx, vy]),
-            ang_vel=np.array([body.angular_velocity]),
+            ang_vel=np.array([omega]),
             force=f_meas,
             torque=t_meas,
         )
         info = StepInfo(
-            true_force=f_true.copy(),
-            true_torque=t_true.copy(),
-            contact_force=f_contact.copy(),
+            true_force=f_true,
+            true_torque=t_true,
+            contact_force=f_contact,
             n_contacts=n_contacts,
             extra={
                 "viscosity_Nspm": self._viscosity(x, y),

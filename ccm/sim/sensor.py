@@ -137,6 +137,9 @@ class FTSensor:
         self._t_bias = np.array(self.config.torque_bias)
         self._noisy_force = bool(np.any(self._f_std > 0.0))
         self._noisy_torque = bool(np.any(self._t_std > 0.0))
+        self._ideal = not (
+            self._noisy_force or self._noisy_torque or np.any(self._f_bias) or np.any(self._t_bias)
+        )
         self._rng: np.random.Generator | None = None
 
     def reset(self, rng: np.random.Generator) -> None:
@@ -156,6 +159,11 @@ class FTSensor:
         Returns:
             New arrays ``(force_measured, torque_measured)``.
         """
+        if self._ideal:
+            return (
+                np.array(force, dtype=float).reshape(self.force_dim),
+                np.array(torque, dtype=float).reshape(self.torque_dim),
+            )
         f = np.asarray(force, dtype=float).reshape(self.force_dim) + self._f_bias
         t = np.asarray(torque, dtype=float).reshape(self.torque_dim) + self._t_bias
         if self._noisy_force or self._noisy_torque:

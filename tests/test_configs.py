@@ -1,0 +1,50 @@
+"""Every config in every group composes and builds; every experiment runs in fast mode (slow)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from ccm.cli import GROUPS, config_dir, group_options
+from ccm.runner import build_components, resolve_conditions, run_experiment
+
+ALL_OPTIONS = [(g, o) for g in GROUPS for o in group_options(g)]
+
+
+def test_every_group_has_options() -> None:
+    for group in GROUPS:
+        assert group_options(group), f"config group {group}/ is empty"
+
+
+@pytest.mark.parametrize(("group", "option"), ALL_OPTIONS, ids=[f"{g}={o}" for g, o in ALL_OPTIONS])
+def test_option_composes_and_builds(composer, group: str, option: str) -> None:
+    cfg = composer([f"{group}={option}"])
+    conditions = resolve_conditions(cfg, lambda extra: composer([f"{group}={option}", *extra]))
+    assert conditions
+    for cond in conditions:
+        comp = build_components(cond.cfg)
+        assert comp.task.pattern.duration > 0
+        assert comp.sim.dim == comp.task.dim
+
+
+@pytest.mark.parametrize("option", group_options("experiment"))
+def test_experiment_configs_follow_the_template(option: str) -> None:
+    text = (config_dir() / "experiment" / f"{option}.yaml").read_text(encoding="utf-8")
+    assert text.startswith("# @package _global_"), "experiment configs are global packages"
+    assert "override /" in text, "experiment configs pick groups with `override /group: x`"
+    assert f"name: {option}" in text, "experiment.name must match the file name"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("option", group_options("experiment"))
+def test_every_experiment_runs_in_fast_mode(composer, tmp_path: Path, option: str) -> None:
+    overrides = [f"experiment={option}", "experiment.fast=true", "experiment.figures=false"]
+    cfg = composer(overrides)
+    summary = run_experiment(
+        cfg, lambda extra: composer([*overrides, *extra]), tmp_path, show_progress=False
+    )
+    assert summary["status"] == "ok"
+    assert (tmp_path / "summary.json").is_file()
+    for metrics in summary["conditions"].values():
+        assert metrics["rms_tracking_error_m"] is not None
