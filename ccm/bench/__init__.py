@@ -1,0 +1,1 @@
+"""``make bench``: speed and memory benchmarks (tables + JSON), never unit-test assertions."""
