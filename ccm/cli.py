@@ -122,7 +122,8 @@ def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
     from omegaconf.errors import OmegaConfBaseException
 
     from ccm.errors import ConfigError
-    from ccm.runner import build_components, check_experiment, resolve_conditions
+    from ccm.metrics import check_extra_metrics
+    from ccm.runner import check_experiment, plan_experiment
 
     try:
         combos = _combos(overrides, multirun)
@@ -135,10 +136,9 @@ def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
                 return bad
             try:
                 cfg = compose("config", overrides=combo)
-                check_experiment(cfg)
-                conds = resolve_conditions(cfg, lambda x, c=combo: _compose_extra(c, x))
-                for cond in conds:
-                    build_components(cond.cfg)
+                settings = check_experiment(cfg)
+                check_extra_metrics(cfg)
+                plan_experiment(cfg, lambda x, c=combo: _compose_extra(c, x), settings["trials"])
             except ConfigError as exc:
                 return str(exc)
             except (HydraException, OmegaConfBaseException, ValueError, TypeError) as exc:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -121,4 +122,89 @@ def aggregate(trials: Sequence[Mapping[str, float | None]]) -> dict[str, float |
     for k in keys:
         vals = [float(tr[k]) for tr in trials if isinstance(tr.get(k), int | float)]
         out[k] = float(np.mean(vals)) if vals else None
+    return out
+
+
+def force_prediction_metrics(
+    log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, float]
+) -> dict[str, float | None]:
+    """One-step force-prediction RMSE (seed A §4.1, Fig. 4).
+
+    Compares the controller's ``pred_force_N`` signal — its prediction of ‖F_t‖ made at
+    step t−1 (Eq. 6) — with the measured ‖F_t‖. ``unseen`` rows are those whose true
+    viscosity exceeds ``params['unseen_above_Nspm']`` (the end of the training ramp).
+    """
+    if "pred_force_N" not in log:
+        return {"force_pred_rmse_N": None, "force_pred_rmse_unseen_N": None}
+    meas = np.linalg.norm(np.column_stack([log[f"force_{a}"] for a in "xyz"[:dim]]), axis=1)
+    pred = log["pred_force_N"]
+    ok = np.isfinite(pred)
+    out: dict[str, float | None] = {
+        "force_pred_rmse_N": float(np.sqrt(np.mean((pred[ok] - meas[ok]) ** 2)))
+        if ok.any()
+        else None
+    }
+    visc = log.get("truth_viscosity_Nspm")
+    limit = params.get("unseen_above_Nspm")
+    unseen = ok & (visc > float(limit)) if visc is not None and limit is not None else ok & False
+    out["force_pred_rmse_unseen_N"] = (
+        float(np.sqrt(np.mean((pred[unseen] - meas[unseen]) ** 2))) if unseen.any() else None
+    )
+    seen = ok & ~unseen
+    out["force_pred_rmse_seen_N"] = (
+        float(np.sqrt(np.mean((pred[seen] - meas[seen]) ** 2))) if seen.any() else None
+    )
+    return out
+
+
+def lag_metrics(
+    log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, float]
+) -> dict[str, float | None]:
+    """Lag behind the target [s]: the delay τ ∈ [0, max_lag_s] minimising the RMS distance
+    between the path x(t) and the delayed target x_d(t − τ) (seed A §4.2.2, "AIC lags")."""
+    t = log["t"]
+    if len(t) < 3:
+        return {"lag_s": None}
+    dt = float(np.median(np.diff(t)))
+    pos = np.column_stack([log[f"pos_{a}"] for a in "xyz"[:dim]])
+    tgt = np.column_stack([log[f"target_pos_{a}"] for a in "xyz"[:dim]])
+    max_shift = min(len(t) // 2, int(round(float(params.get("max_lag_s", 1.0)) / dt)))
+    best, best_k = np.inf, 0
+    for k in range(0, max_shift + 1, max(1, int(round(0.002 / dt)))):
+        d = pos[k:] - tgt[: len(t) - k]
+        err = float(np.mean(np.sum(d * d, axis=1)))
+        if err < best:
+            best, best_k = err, k
+    return {"lag_s": best_k * dt}
+
+
+#: name -> function(log, dim, params) -> metrics; chosen per experiment in experiment.metrics
+EXTRA_METRICS = {
+    "force_prediction": force_prediction_metrics,
+    "lag": lag_metrics,
+}
+
+
+def check_extra_metrics(cfg: Any) -> list[str]:
+    """Validate ``experiment.metrics`` (names from :data:`EXTRA_METRICS`)."""
+    from ccm.errors import ConfigError
+
+    names = cfg.experiment.get("metrics") or []
+    for name in names:
+        if name not in EXTRA_METRICS:
+            raise ConfigError(
+                "experiment.metrics",
+                f"unknown metric {name!r}; allowed: {', '.join(EXTRA_METRICS)}",
+            )
+    return [str(n) for n in names]
+
+
+def compute_extra_metrics(
+    names: Sequence[str], log: Mapping[str, np.ndarray], comp: Any, cfg: Any
+) -> dict[str, float | None]:
+    """Run the experiment's extra metrics on one trial log."""
+    params = dict(cfg.metrics)
+    out: dict[str, float | None] = {}
+    for name in names:
+        out.update(EXTRA_METRICS[name](log, comp.task.dim, params))
     return out

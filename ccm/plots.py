@@ -21,8 +21,13 @@ def write_figures(
     components: Mapping[str, Any],
     logs: Mapping[str, Sequence[Mapping[str, np.ndarray]]],
     settings: Mapping[str, Any],
+    trials: Sequence[Mapping[str, Any]] = (),
 ) -> list[Path]:
-    """Write PNGs comparing the last trial of every condition; return their paths."""
+    """Write PNGs comparing the last trial of every condition; return their paths.
+
+    Besides the five standard figures, ``error_vs_trial.png`` appears when a condition has
+    several trials and ``force_prediction.png`` when a controller logs ``pred_force_N``.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -43,35 +48,34 @@ def write_figures(
         plt.close(fig)
         written.append(path)
 
-    # 1. path vs target (x-y plane; 3-D adds x-z)
-    n_planes = 1 if dim == 2 else 2
-    fig, axs = plt.subplots(1, n_planes, figsize=(5.5 * n_planes, 5), squeeze=False)
-    for p, (i, j) in enumerate([(0, 1), (0, 2)][:n_planes]):
-        ax = axs[0, p]
-        for c, (name, log) in enumerate(last.items()):
+    # 1. path vs target (x-y plane); one panel per condition when there are several
+    names = list(last)
+    ncol = 1 if len(names) <= 2 else min(4, len(names))
+    nrow = 1 if len(names) <= 2 else -(-len(names) // ncol)
+    panels = [names] if len(names) <= 2 else [[n] for n in names]
+    fig, axs = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 4.2 * nrow), squeeze=False)
+    for p, group in enumerate(panels):
+        ax = axs.flat[p]
+        for name in group:
+            c = names.index(name)
             col = colors[c % len(colors)]
+            log = last[name]
             ax.plot(
-                log[f"target_pos_{AXES[i]}"],
-                log[f"target_pos_{AXES[j]}"],
-                "--",
-                color=col,
+                log["target_pos_x"],
+                log["target_pos_y"],
+                "k--",
                 lw=1,
-                alpha=0.7,
-                label=f"{name} target",
+                alpha=0.6,
+                label="target" if name == group[0] else None,
             )
-            ax.plot(
-                log[f"pos_{AXES[i]}"],
-                log[f"pos_{AXES[j]}"],
-                "-",
-                color=col,
-                lw=1.5,
-                label=f"{name} actual",
-            )
-        ax.set_xlabel(f"{AXES[i]} [m]")
-        ax.set_ylabel(f"{AXES[j]} [m]")
+            ax.plot(log["pos_x"], log["pos_y"], "-", color=col, lw=1.5, label=name)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
+    for ax in list(axs.flat)[len(panels) :]:
+        ax.set_visible(False)
     fig.suptitle("End-effector path vs target (last trial)")
     save(fig, "path.png")
 
@@ -146,4 +150,46 @@ def write_figures(
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     save(fig, "kinematics.png")
+
+    # 6. tracking error vs trial number (learning across trials, e.g. BAC, seed A Fig. 7)
+    by_cond: dict[str, list[tuple[int, float]]] = {}
+    for tr in trials:
+        if isinstance(tr.get("rms_tracking_error_m"), float):
+            by_cond.setdefault(tr["condition"], []).append(
+                (tr["trial"], tr["rms_tracking_error_m"])
+            )
+    if any(len(v) > 1 for v in by_cond.values()):
+        fig, ax = plt.subplots(figsize=(8, 4))
+        for name, pts in by_cond.items():
+            xs, ys = zip(*pts, strict=True)
+            ax.plot(xs, 1000.0 * np.asarray(ys), "o-", ms=3, label=name)
+        ax.set_xlabel("trial")
+        ax.set_ylabel("RMS tracking error [mm]")
+        ax.set_yscale("log")
+        ax.set_title("Tracking error over repeated trials")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+        save(fig, "error_vs_trial.png")
+
+    # 7. one-step force prediction vs measurement (seed A Fig. 4)
+    pred = {n: log for n, log in last.items() if "pred_force_N" in log}
+    if pred:
+        fig, axs = plt.subplots(
+            len(pred), 1, figsize=(8, 2.8 * len(pred)), sharex=True, squeeze=False
+        )
+        for ax, (name, log) in zip(axs[:, 0], pred.items(), strict=True):
+            f = np.linalg.norm(_axes_arrays(log, "force", dim), axis=1)
+            ax.plot(log["t"], f, color="tab:green", lw=1.2, label="measured |F|")
+            ax.plot(log["t"], log["pred_force_N"], color="tab:red", lw=1, label="predicted |F|")
+            ax.set_ylabel("|F| [N]")
+            ax.set_title(name, fontsize=9)
+            ax.grid(alpha=0.3)
+            if "truth_viscosity_Nspm" in log:
+                ax2 = ax.twinx()
+                ax2.plot(log["t"], log["truth_viscosity_Nspm"], color="0.5", lw=0.8, ls=":")
+                ax2.set_ylabel("viscosity [N s/m]", color="0.4")
+            ax.legend(fontsize=8, loc="upper left")
+        axs[-1, 0].set_xlabel("time [s]")
+        fig.suptitle("One-step force prediction (last trial)")
+        save(fig, "force_prediction.png")
     return written

@@ -28,7 +28,7 @@ from ccm.errors import (
     check_nonneg,
     check_positive,
 )
-from ccm.metrics import aggregate, trial_metrics
+from ccm.metrics import aggregate, check_extra_metrics, compute_extra_metrics, trial_metrics
 from ccm.records import TrialRecorder, write_json_atomic
 from ccm.sim import make_sim
 from ccm.sim.base import Simulator, check_state_finite
@@ -43,10 +43,24 @@ _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
 @dataclass
 class Condition:
-    """One experimental condition: a name and its fully composed config."""
+    """One experimental condition: a name, its overrides and its fully composed config."""
 
     name: str
     cfg: DictConfig
+    overrides: list[str]
+
+
+@dataclass
+class Phase:
+    """A block of trials within a condition, e.g. ``train`` then ``test`` (seed A §4.1).
+
+    The controller (and what it has learned) carries over from phase to phase; the phase's
+    overrides rebuild the simulator and task (e.g. a different viscosity ramp).
+    """
+
+    name: str
+    trials: int
+    overrides: list[str]
 
 
 @dataclass
@@ -69,7 +83,7 @@ def resolve_conditions(cfg: DictConfig, compose: ComposeFn) -> list[Condition]:
     """Expand ``experiment.conditions`` into composed configs (or the run config alone)."""
     spec = cfg.experiment.get("conditions") or {}
     if not spec:
-        return [Condition(name=str(cfg.controller.get("type", "default")), cfg=cfg)]
+        return [Condition(name=str(cfg.controller.get("type", "default")), cfg=cfg, overrides=[])]
     out = []
     for name, overrides in plain(spec).items():
         key = f"experiment.conditions.{name}"
@@ -77,8 +91,46 @@ def resolve_conditions(cfg: DictConfig, compose: ComposeFn) -> list[Condition]:
             raise ConfigError(key, "condition names may use letters, digits, '_', '-', '.'")
         if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
             raise ConfigError(key, "must be a list of override strings, e.g. [controller=x]")
-        out.append(Condition(name=str(name), cfg=compose(list(overrides))))
+        out.append(Condition(name=str(name), cfg=compose(list(overrides)), overrides=overrides))
     return out
+
+
+def resolve_phases(cfg: DictConfig, trials: int) -> list[Phase]:
+    """``experiment.phases`` (list of {name, trials, overrides}) or one phase of ``trials``."""
+    spec = plain(cfg.experiment.get("phases")) or []
+    if not spec:
+        return [Phase(name="main", trials=trials, overrides=[])]
+    if not isinstance(spec, list):
+        raise ConfigError("experiment.phases", "must be a list of {name, trials, overrides}")
+    phases = []
+    for i, ph in enumerate(spec):
+        key = f"experiment.phases[{i}]"
+        if not isinstance(ph, dict) or set(ph) - {"name", "trials", "overrides"}:
+            raise ConfigError(key, "must be a mapping with keys name, trials, overrides")
+        name = str(ph.get("name", f"phase{i}"))
+        if not _NAME_RE.match(name):
+            raise ConfigError(f"{key}.name", "may use letters, digits, '_', '-', '.'")
+        overrides = ph.get("overrides") or []
+        if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
+            raise ConfigError(f"{key}.overrides", "must be a list of override strings")
+        n = check_int_positive(f"{key}.trials", ph.get("trials", 1))
+        phases.append(Phase(name=name, trials=n, overrides=overrides))
+    return phases
+
+
+def plan_experiment(
+    cfg: DictConfig, compose: ComposeFn, trials: int
+) -> list[tuple[Condition, list[tuple[Phase, Components]]]]:
+    """Compose and build every condition × phase up front, so bad input fails before a run."""
+    plan = []
+    phases = resolve_phases(cfg, trials)
+    for cond in resolve_conditions(cfg, compose):
+        built = []
+        for ph in phases:
+            pcfg = compose([*cond.overrides, *ph.overrides]) if ph.overrides else cond.cfg
+            built.append((ph, build_components(pcfg)))
+        plan.append((cond, built))
+    return plan
 
 
 def build_components(cfg: DictConfig) -> Components:
@@ -122,6 +174,7 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
             "metrics.completion_tol_m", cfg.metrics.completion_tol_m
         ),
         "figures": bool(exp.get("figures", True)),
+        "fast": fast,
     }
 
 
@@ -177,71 +230,101 @@ def run_experiment(
     out_dir: Path,
     show_progress: bool = True,
 ) -> dict[str, Any]:
-    """Run every condition × trial of ``cfg.experiment`` and write the run directory.
+    """Run every condition × phase × trial of ``cfg.experiment``; write the run directory.
 
+    The controller of a condition is built once and carries its learned state through all
+    of the condition's phases and trials (``end_trial`` after each). ``conditions.<name>``
+    in the summary averages the trials of the *last* phase; every trial is in ``trials``.
     Returns the summary dict (also written to ``out_dir/summary.json`` last).
     """
     settings = check_experiment(cfg)
-    conditions = resolve_conditions(cfg, compose)
-    built = [(c, build_components(c.cfg)) for c in conditions]  # validate all before running
-    durations = {}
-    for cond, comp in built:
+    plan = plan_experiment(cfg, compose, settings["trials"])
+    extra = check_extra_metrics(cfg)
+
+    def n_trials(ph: Phase) -> int:
+        return min(ph.trials, settings["trials"]) if settings["fast"] else ph.trials
+
+    def duration(comp: Components) -> float:
         d = comp.task.pattern.duration + settings["settle_time_s"]
-        if settings["max_time_s"] is not None:
-            d = min(d, settings["max_time_s"])
-        durations[cond.name] = d
+        return d if settings["max_time_s"] is None else min(d, settings["max_time_s"])
+
     total_steps = sum(
-        int(durations[c.name] / comp.sim.control_dt) * settings["trials"] for c, comp in built
+        int(duration(comp) / comp.sim.control_dt) * n_trials(ph)
+        for _, phases in plan
+        for ph, comp in phases
     )
     bar = _progress_bar(total_steps, cfg.experiment.name, show_progress)
     trials_out: list[dict[str, Any]] = []
     logs: dict[str, list[dict[str, np.ndarray]]] = {}
     wall0 = time.perf_counter()
+    sim_time = 0.0
     try:
-        for cond, comp in built:
-            for trial in range(1, settings["trials"] + 1):
-                seed = trial_seed(int(cfg.seed), trial)
-                rec = run_trial(comp, seed, durations[cond.name], bar.update if bar else None)
-                ts_path = out_dir / "timeseries" / cond.name / f"trial_{trial:03d}.csv"
-                rec.write_csv(ts_path)
-                arrays = rec.arrays()
-                metrics = trial_metrics(
-                    arrays,
-                    comp.task.dim,
-                    comp.sim.control_dt,
-                    comp.task.pattern.duration,
-                    settings["lowpass_hz"],
-                    settings["completion_tol_m"],
-                )
-                trials_out.append({"condition": cond.name, "trial": trial, "seed": seed, **metrics})
-                logs.setdefault(cond.name, []).append(arrays)
-                comp.controller.end_trial()
-            comp.sim.close()
+        for cond, phases in plan:
+            controller = phases[0][1].controller
+            trial = 0
+            for ph, comp in phases:
+                comp = Components(sim=comp.sim, task=comp.task, controller=controller)
+                for _ in range(n_trials(ph)):
+                    trial += 1
+                    seed = trial_seed(int(cfg.seed), trial)
+                    rec = run_trial(comp, seed, duration(comp), bar.update if bar else None)
+                    sim_time += duration(comp)
+                    rec.write_csv(out_dir / "timeseries" / cond.name / f"trial_{trial:03d}.csv")
+                    arrays = rec.arrays()
+                    metrics = trial_metrics(
+                        arrays,
+                        comp.task.dim,
+                        comp.sim.control_dt,
+                        comp.task.pattern.duration,
+                        settings["lowpass_hz"],
+                        settings["completion_tol_m"],
+                    )
+                    metrics.update(compute_extra_metrics(extra, arrays, comp, cfg))
+                    trials_out.append(
+                        {
+                            "condition": cond.name,
+                            "phase": ph.name,
+                            "trial": trial,
+                            "seed": seed,
+                            **metrics,
+                        }
+                    )
+                    kept = logs.setdefault(cond.name, [])
+                    kept[1:] = []  # keep the first and the latest trial's log for figures
+                    kept.append(arrays)
+                    controller.end_trial()
+                comp.sim.close()
     finally:
         if bar is not None:
             bar.close()
     wall = time.perf_counter() - wall0
+    last_phase = {cond.name: phases[-1][0].name for cond, phases in plan}
     if settings["figures"]:
         from ccm.plots import write_figures
 
-        write_figures(out_dir / "figures", {c.name: comp for c, comp in built}, logs, settings)
+        write_figures(
+            out_dir / "figures",
+            {cond.name: phases[-1][1] for cond, phases in plan},
+            logs,
+            settings,
+            trials_out,
+        )
     summary = {
         "experiment": str(cfg.experiment.name),
         "status": "ok",
         "seed": int(cfg.seed),
         "conditions": {
-            c.name: aggregate(
+            name: aggregate(
                 [
-                    {k: v for k, v in t.items() if k not in ("condition", "trial", "seed")}
+                    {k: v for k, v in t.items() if k not in _TRIAL_KEYS}
                     for t in trials_out
-                    if t["condition"] == c.name
+                    if t["condition"] == name and t["phase"] == phase
                 ]
             )
-            for c, _ in built
+            for name, phase in last_phase.items()
         },
         "trials": trials_out,
     }
-    sim_time = sum(durations[c.name] * settings["trials"] for c, _ in built)
     # wall-clock facts vary run to run, so they live outside summary.json (determinism)
     write_json_atomic(
         out_dir / "run_info.json",
@@ -249,6 +332,9 @@ def run_experiment(
     )
     write_json_atomic(out_dir / "summary.json", summary)
     return summary
+
+
+_TRIAL_KEYS = ("condition", "phase", "trial", "seed")
 
 
 def failed_summary(cfg: DictConfig | None, error: str) -> dict[str, Any]:

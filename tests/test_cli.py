@@ -80,7 +80,7 @@ def test_same_seed_gives_identical_summary(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("override", "expected"),
     [
-        ("controller=nope", "controller=nope: unknown option; allowed: fixed_impedance"),
+        ("controller=nope", "controller=nope: unknown option; allowed: aic, avic, bac,"),
         ("controller.stiffness=-5", "controller.stiffness: must be > 0"),
         ("sim.dt=0", "sim.dt: must be > 0"),
         ("task=nope", "task=nope: unknown option; allowed:"),

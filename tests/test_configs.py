@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from ccm.cli import GROUPS, config_dir, group_options
-from ccm.runner import build_components, resolve_conditions, run_experiment
+from ccm.runner import check_experiment, plan_experiment, run_experiment
 
 ALL_OPTIONS = [(g, o) for g in GROUPS for o in group_options(g)]
 
@@ -20,12 +20,13 @@ def test_every_group_has_options() -> None:
 @pytest.mark.parametrize(("group", "option"), ALL_OPTIONS, ids=[f"{g}={o}" for g, o in ALL_OPTIONS])
 def test_option_composes_and_builds(composer, group: str, option: str) -> None:
     cfg = composer([f"{group}={option}"])
-    conditions = resolve_conditions(cfg, lambda extra: composer([f"{group}={option}", *extra]))
-    assert conditions
-    for cond in conditions:
-        comp = build_components(cond.cfg)
-        assert comp.task.pattern.duration > 0
-        assert comp.sim.dim == comp.task.dim
+    trials = check_experiment(cfg)["trials"]
+    plan = plan_experiment(cfg, lambda extra: composer([f"{group}={option}", *extra]), trials)
+    assert plan
+    for _, phases in plan:
+        for _, comp in phases:
+            assert comp.task.pattern.duration > 0
+            assert comp.sim.dim == comp.task.dim
 
 
 @pytest.mark.parametrize("option", group_options("experiment"))

@@ -5,12 +5,20 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from ccm.control.aic import AIC
+from ccm.control.avic import AVIC
+from ccm.control.bac import BAC
 from ccm.control.base import Controller
 from ccm.control.impedance import FixedImpedance
+from ccm.control.mrac import MRAC
 from ccm.errors import check_choice
 
 CONTROLLERS: dict[str, type[Controller]] = {
     "fixed_impedance": FixedImpedance,
+    "mrac": MRAC,
+    "aic": AIC,
+    "bac": BAC,
+    "avic": AVIC,
 }
 
 

@@ -1,0 +1,174 @@
+"""Adaptive variable impedance control with a learned forward model (seed A §3.1, Eq. 4a–4c).
+
+The command adds to the hybrid impedance law of Eq. 1 a feed-forward wrench λ W_pred from
+the forward model (Eq. 4a), and moves the stiffness between K_free and K_max with the
+model's accuracy (Eq. 4b), where λ is a logistic function of the prediction error (Eq. 4c):
+
+    u_t   = K_p Δx + K_d Δẋ + m ẍ_d + u_fc − λ Ŵ                       (4a)
+    K_p   = K_free + (1 − λ)(K_max − K_free)                             (4b)
+    λ     = 1 − 1 / (1 + exp(−r (ε − ε₀)))                               (4c)
+
+Timing. At control step t the sensor has just given F_t, so the newest error is
+ε_t = ‖D_t − D̂_t‖ (D̂_t was predicted at t−1), and the command u_t — applied until t+1 —
+uses λ_t and the prediction D̂_{t+1} = f(S_t). This is the paper's λ_{t−1}, W_t^pred shifted
+to the sample at which each quantity becomes available.
+
+Sign. Ŵ is the predicted *external* force on the end-effector, so the command subtracts it
+to cancel it (the paper writes +λ W_pred for the compensating wrench).
+
+Direction. The model predicts magnitudes (Eq. 2–3); ``ff_direction`` turns ‖F̂‖ into a
+vector: ``against_motion`` (seed A §3.1: forces act along or against the direction of
+motion, as friction and drag do) gives Ŵ = −‖F̂‖ v̂, and no feed-forward below
+``min_speed``; ``measured`` keeps the direction of the latest measured force, Ŵ = ‖F̂‖ F̂_t,
+which also suits forces that are not aligned with the motion (springs).
+Feed-forward is removed along a force-controlled direction (the force loop owns it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ccm.control.impedance import FixedImpedance, damping_from_rule
+from ccm.errors import ConfigError, check_choice, check_nonneg, check_positive, constructor_kwargs
+from ccm.learn.forward_model import N_STATE, magnitudes, make_forward_model
+from ccm.types import Command, Observation, TargetSample
+
+FF_DIRECTIONS = ("against_motion", "measured")
+_OWN_KEYS = (
+    "k_free", "k_max", "r", "eps0", "adaptive", "feedforward", "ff_direction", "min_speed",
+    "forward_model",
+)  # fmt: skip
+
+
+class AVIC(FixedImpedance):
+    """AVIC of seed A Eq. 4a–4c on top of the hybrid impedance law of Eq. 1.
+
+    Args:
+        k_free: K_free [N/m], the stiffness used when the model is accurate (> 0).
+        k_max: K_max [N/m], the stiffness used when it is not (>= k_free).
+        r: logistic growth rate of Eq. 4c [1/N].
+        eps0: logistic midpoint ε₀ of Eq. 4c [N].
+        adaptive: False fixes K_p = K_max and drops the feed-forward while the model still
+            learns and predicts (the fixed-GMM + high-stiffness baseline of seed A §4.1).
+        feedforward: add −λ Ŵ (Eq. 4a).
+        ff_direction: ``against_motion`` or ``measured`` (see the module docstring).
+        min_speed: speed below which ``against_motion`` has no direction [m/s].
+        forward_model: ``{kind: igmm | fixed_gmm, ...}`` (:mod:`ccm.learn.forward_model`).
+        impedance: the remaining :class:`FixedImpedance` parameters (damping rule, force
+            loop, …); its ``stiffness`` is not used.
+    """
+
+    def __init__(
+        self,
+        k_free: float = 300.0,
+        k_max: float = 3000.0,
+        r: float = 2.0,
+        eps0: float = 2.0,
+        adaptive: bool = True,
+        feedforward: bool = True,
+        ff_direction: str = "measured",
+        min_speed: float = 0.005,
+        forward_model: Mapping[str, Any] | None = None,
+        impedance: Mapping[str, Any] | None = None,
+        key: str = "controller",
+    ) -> None:
+        imp = dict(impedance or {})
+        imp.pop("stiffness", None)
+        super().__init__(stiffness=k_max, **imp, key=key)
+        self.k_free = check_positive(f"{key}.k_free", k_free)
+        self.k_max = check_positive(f"{key}.k_max", k_max)
+        if self.k_max < self.k_free:
+            raise ConfigError(f"{key}.k_max", f"must be >= k_free={k_free}, got {k_max}")
+        self.r = check_positive(f"{key}.r", r)
+        self.eps0 = check_nonneg(f"{key}.eps0", eps0)
+        self.adaptive = bool(adaptive)
+        self.feedforward = bool(feedforward)
+        self.ff_direction = check_choice(f"{key}.ff_direction", ff_direction, FF_DIRECTIONS)
+        self.min_speed = check_nonneg(f"{key}.min_speed", min_speed)
+        self.model = make_forward_model(dict(forward_model or {}), f"{key}.forward_model")
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> AVIC:
+        """Split a ``controller`` config into AVIC's own keys and the impedance keys."""
+        own = {k: v for k, v in cfg.items() if k in _OWN_KEYS}
+        rest = {k: v for k, v in cfg.items() if k not in _OWN_KEYS}
+        imp = constructor_kwargs(FixedImpedance, rest, key)
+        return cls(**own, impedance=imp, key=key)
+
+    def reset(self, dim: int, control_dt: float) -> None:
+        super().reset(dim, control_dt)
+        self._lam = 0.0  # start stiff (K_max) until the model has proven itself
+        self._s_prev: np.ndarray | None = None
+        self._pred: np.ndarray | None = None
+        self._signals.update(self._avic_signals(math.nan, math.nan, math.nan))
+
+    def _avic_signals(self, pred: float, err: float, kp: float) -> dict[str, float]:
+        return {
+            "lambda": self._lam,
+            "pred_force_N": pred,
+            "pred_error_N": err,
+            "n_components": float(getattr(self.model, "n_components", 0)),
+            "stiffness_Npm": kp,
+        }
+
+    def logistic(self, eps: float) -> float:
+        """λ(ε) of Eq. 4c, in [0, 1]; numerically safe for any ε."""
+        z = -self.r * (eps - self.eps0)  # λ = 1 − 1/(1 + e^z) = e^z / (1 + e^z)
+        if z >= 0.0:
+            return 1.0 / (1.0 + math.exp(-z))
+        ez = math.exp(z)
+        return ez / (1.0 + ez)
+
+    def stiffness_for(self, lam: float) -> float:
+        """K_p of Eq. 4b."""
+        return self.k_free + (1.0 - lam) * (self.k_max - self.k_free)
+
+    def step(self, obs: Observation, target: TargetSample) -> Command:
+        """Eq. 4a–4c: learn from the newest sample, adapt λ and K_p, add the feed-forward."""
+        s = magnitudes(obs.lin_vel, obs.ang_vel, obs.force, obs.torque)
+        d = s[2:N_STATE]
+        pred_now = math.nan if self._pred is None else float(self._pred[0])
+        err = math.nan
+        if self._s_prev is not None:
+            if self._pred is not None and self.model.ready:
+                err = float(np.linalg.norm(d - self._pred))
+                self._lam = self.logistic(err)
+            self.model.update(self._s_prev, d)
+        lam = self._lam if self.adaptive else 0.0
+        kp = self.stiffness_for(lam) if self.adaptive else self.k_max
+        kd = float(
+            damping_from_rule(
+                kp, self.damping_rule, self.mass_kg, self.damping_ratio, self.fixed_damping
+            )
+        )
+        u_motion, u_force = self.motion_force(obs, target, kp, kd)
+        self._pred = self.model.predict(s) if self.model.ready else None
+        u = u_motion + u_force
+        if self.feedforward and self.adaptive and self._pred is not None and lam > 0.0:
+            w = self.predicted_wrench(float(self._pred[0]), obs)
+            if target.force_dir is not None:
+                w = w - target.force_dir * float(target.force_dir @ w)
+            u = u - lam * w
+        self._s_prev = s
+        self._signals.update(self._avic_signals(pred_now, err, kp))
+        self._signals["damping_Nspm"] = kd
+        return Command(force=u, torque=self.rotation_torque(obs, target))
+
+    def predicted_wrench(self, f_mag: float, obs: Observation) -> np.ndarray:
+        """Ŵ: the predicted external force as a vector (see ``ff_direction``)."""
+        if self.ff_direction == "against_motion":
+            speed = math.sqrt(float(obs.lin_vel @ obs.lin_vel))
+            if speed < self.min_speed:
+                return np.zeros(obs.position.shape[0])
+            return -f_mag * obs.lin_vel / speed
+        fm = math.sqrt(float(obs.force @ obs.force))
+        if fm < 1e-9:
+            return np.zeros(obs.position.shape[0])
+        return f_mag * obs.force / fm
+
+    def end_trial(self) -> None:
+        self.model.end_trial()

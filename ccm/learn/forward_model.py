@@ -1,0 +1,206 @@
+"""Forward models of the interaction dynamics in wrench-magnitude space (seed A §3.1).
+
+A point is X_t = [S_{t−1}, D_t] with (Eq. 2, 3)
+
+    S = [‖ẋ_lin‖, ‖ẋ_rot‖, ‖F‖, ‖τ‖],   D = [‖F‖, ‖τ‖],
+
+and a model predicts D_{t+1} from S_t by GMR (Eq. 6). Magnitudes make the model independent
+of the direction of motion; the controller turns a predicted magnitude back into a vector
+(see :mod:`ccm.control.avic`). Features are divided by ``feature_scale`` (their typical size,
+in their own units) before they reach the mixture, so that one isotropic initial covariance
+suits speeds in m/s and forces in N alike.
+
+* :class:`IncrementalForwardModel` — IGMM revised at every step (seed A's model).
+* :class:`FrozenGMMForwardModel` — scikit-learn ``GaussianMixture`` fit once on the first
+  ``fit_steps`` points, then frozen (seed A §4.1's fixed-GMM baseline).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ccm.errors import ConfigError, check_int_positive, check_positive
+
+N_STATE = 4
+N_EFFECT = 2
+IN_IDX = np.arange(N_STATE)
+OUT_IDX = np.arange(N_STATE, N_STATE + N_EFFECT)
+#: typical magnitudes of [‖v‖ m/s, ‖ω‖ rad/s, ‖F‖ N, ‖τ‖ N m, ‖F‖ N, ‖τ‖ N m] (chosen)
+DEFAULT_SCALE = (0.1, 1.0, 10.0, 1.0, 10.0, 1.0)
+
+
+def magnitudes(
+    lin_vel: np.ndarray, ang_vel: np.ndarray, force: np.ndarray, torque: np.ndarray
+) -> np.ndarray:
+    """S_t of Eq. 2: [‖ẋ_lin‖, ‖ẋ_rot‖, ‖F‖, ‖τ‖]."""
+    return np.array(
+        [
+            math.sqrt(float(lin_vel @ lin_vel)),
+            math.sqrt(float(ang_vel @ ang_vel)),
+            math.sqrt(float(force @ force)),
+            math.sqrt(float(torque @ torque)),
+        ]
+    )
+
+
+def _check_scale(scale: Sequence[float], key: str) -> np.ndarray:
+    arr = np.asarray(list(scale), dtype=float)
+    if arr.shape != (N_STATE + N_EFFECT,):
+        raise ConfigError(key, f"needs {N_STATE + N_EFFECT} values, got {list(scale)!r}")
+    for i, v in enumerate(arr):
+        check_positive(f"{key}[{i}]", v)
+    return arr
+
+
+class IncrementalForwardModel:
+    """IGMM forward model revised online (seed A §3.1, Eq. 5–6).
+
+    Args:
+        feature_scale: divisor per feature of X = [S, D] (6 values).
+        igmm: keyword arguments of :class:`ccm.learn.igmm.IGMM`.
+        key: config prefix for error messages.
+    """
+
+    def __init__(
+        self,
+        feature_scale: Sequence[float] = DEFAULT_SCALE,
+        igmm: dict[str, Any] | None = None,
+        key: str = "controller.forward_model",
+    ) -> None:
+        from ccm.learn.igmm import IGMM
+
+        self.scale = _check_scale(feature_scale, f"{key}.feature_scale")
+        self.model = IGMM(N_STATE + N_EFFECT, **(igmm or {}), key=f"{key}.igmm")
+        self._gmr = self.model.conditional(IN_IDX, OUT_IDX)  # refreshed by the model itself
+        self._x = np.empty(N_STATE + N_EFFECT)
+
+    @property
+    def ready(self) -> bool:
+        """True once the model has a component to predict with."""
+        return self.model.n_components_ > 0
+
+    def update(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
+        """Add X_t = [S_{t−1}, D_t] (Eq. 5, one incremental step)."""
+        self._x[:N_STATE] = s_prev
+        self._x[N_STATE:] = d_now
+        self.model.partial_fit(self._x / self.scale)
+
+    def predict(self, s_now: np.ndarray) -> np.ndarray:
+        """D̂_{t+1} = f_fm(S_t) by GMR (Eq. 6); zeros before the first point."""
+        if not self.ready:
+            return np.zeros(N_EFFECT)
+        y = self._gmr.predict(s_now / self.scale[:N_STATE])
+        return np.asarray(y, dtype=float) * self.scale[N_STATE:]
+
+    def end_trial(self) -> None:
+        """Nothing to do: the model learns every step."""
+
+    @property
+    def n_components(self) -> int:
+        return int(self.model.n_components_)
+
+
+class FrozenGMMForwardModel:
+    """Fixed GMM baseline (seed A §4.1): batch-fit on the first ``fit_steps`` points, frozen.
+
+    Points are collected across trials until ``fit_steps`` are seen; the mixture is fit then
+    and never revised. Before the fit it predicts zeros (and says so through ``ready``).
+
+    Args:
+        fit_steps: number of points in the training window ("the initial phase").
+        n_components: mixture size for ``sklearn.mixture.GaussianMixture``.
+        feature_scale: as for :class:`IncrementalForwardModel`.
+        random_state: seed of the k-means initialisation (reproducible fits).
+        reg_covar: covariance regulariser passed to scikit-learn.
+    """
+
+    def __init__(
+        self,
+        fit_steps: int = 6000,
+        n_components: int = 8,
+        feature_scale: Sequence[float] = DEFAULT_SCALE,
+        random_state: int = 0,
+        reg_covar: float = 1e-6,
+        key: str = "controller.forward_model",
+    ) -> None:
+        self.fit_steps = check_int_positive(f"{key}.fit_steps", fit_steps)
+        self.n_components = check_int_positive(f"{key}.n_components", n_components)
+        self.scale = _check_scale(feature_scale, f"{key}.feature_scale")
+        self.random_state = int(random_state)
+        self.reg_covar = check_positive(f"{key}.reg_covar", reg_covar)
+        self._buf = np.empty((self.fit_steps, N_STATE + N_EFFECT))
+        self._n = 0
+        self._params: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    @property
+    def ready(self) -> bool:
+        return self._params is not None
+
+    def update(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
+        """Collect X_t until the training window is full, then fit once."""
+        if self._params is not None:
+            return
+        self._buf[self._n, :N_STATE] = s_prev
+        self._buf[self._n, N_STATE:] = d_now
+        self._n += 1
+        if self._n == self.fit_steps:
+            self._fit()
+
+    def _fit(self) -> None:
+        from sklearn.mixture import GaussianMixture
+
+        X = self._buf[: self._n] / self.scale
+        k = min(self.n_components, len(X))
+        gm = GaussianMixture(
+            n_components=k,
+            covariance_type="full",
+            reg_covar=self.reg_covar,
+            random_state=self.random_state,
+        ).fit(X)
+        from ccm.learn.gmr import GMRConditional
+
+        self._params = (gm.weights_.copy(), gm.means_.copy(), gm.covariances_.copy())
+        self._gmr = GMRConditional(*self._params, IN_IDX, OUT_IDX)  # cached factorisations
+        self._buf = np.empty((0, N_STATE + N_EFFECT))
+
+    def predict(self, s_now: np.ndarray) -> np.ndarray:
+        """D̂_{t+1} by GMR on the frozen mixture (Eq. 6); zeros before the fit."""
+        if self._params is None:
+            return np.zeros(N_EFFECT)
+        mean = self._gmr.predict(s_now / self.scale[:N_STATE])
+        return np.asarray(mean, dtype=float) * self.scale[N_STATE:]
+
+    def end_trial(self) -> None:
+        """Nothing to do: the model is frozen after its window."""
+
+
+FORWARD_MODELS = {"igmm": IncrementalForwardModel, "fixed_gmm": FrozenGMMForwardModel}
+
+
+def make_forward_model(cfg: dict[str, Any], key: str = "controller.forward_model") -> Any:
+    """Build a forward model from ``{kind, feature_scale, igmm: {...}, fixed_gmm: {...}}``.
+
+    ``kind`` picks the model; only its own sub-mapping is used, so a config can carry the
+    settings of both kinds and a condition can switch with ``forward_model.kind=…``.
+    """
+    from ccm.errors import check_choice
+
+    cfg = dict(cfg or {})
+    for name in cfg:
+        if name not in ("kind", "feature_scale", *FORWARD_MODELS):
+            allowed = ", ".join(("kind", "feature_scale", *FORWARD_MODELS))
+            raise ConfigError(f"{key}.{name}", f"unknown key; allowed: {allowed}")
+    kind = check_choice(f"{key}.kind", cfg.get("kind", "igmm"), FORWARD_MODELS)
+    scale = cfg.get("feature_scale", DEFAULT_SCALE)
+    sub = dict(cfg.get(kind) or {})
+    if kind == "igmm":
+        return IncrementalForwardModel(feature_scale=scale, igmm=sub, key=key)
+    from ccm.errors import constructor_kwargs
+
+    kwargs = constructor_kwargs(FrozenGMMForwardModel, sub, f"{key}.{kind}")
+    kwargs.pop("feature_scale", None)
+    return FrozenGMMForwardModel(**kwargs, feature_scale=scale, key=key)

@@ -1,0 +1,102 @@
+"""AVIC (seed A Eq. 4a-4c): bounds of lambda and K_p, feed-forward direction, validation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ccm.control.avic import AVIC
+from ccm.errors import ConfigError
+from ccm.types import Observation, TargetSample
+
+FIXED = {"kind": "fixed_gmm", "fixed_gmm": {"fit_steps": 50, "n_components": 2}}
+
+
+def obs(vel=(0.1, 0.0), force=(-1.0, 0.0), pos=(0.0, 0.0)) -> Observation:
+    return Observation(
+        0.0,
+        np.array(pos, float),
+        np.zeros(1),
+        np.array(vel, float),
+        np.zeros(1),
+        np.array(force, float),
+        np.zeros(1),
+    )
+
+
+def target() -> TargetSample:
+    z = np.zeros(2)
+    return TargetSample(0.0, z.copy(), z.copy(), z.copy(), np.zeros(1))
+
+
+def make(**kw) -> AVIC:
+    kw.setdefault("forward_model", FIXED)
+    c = AVIC(**kw)
+    c.reset(2, 0.001)
+    return c
+
+
+def test_logistic_of_eq_4c() -> None:
+    c = make(r=3.0, eps0=1.5)
+    assert c.logistic(1.5) == pytest.approx(0.5)
+    eps = np.linspace(-5, 50, 500)
+    lam = np.array([c.logistic(e) for e in eps])
+    assert np.all((lam >= 0) & (lam <= 1))
+    assert np.all(np.diff(lam) <= 0), "larger prediction error, smaller lambda"
+    assert c.logistic(1e6) == 0.0 and c.logistic(-1e6) == 1.0  # no overflow
+
+
+def test_stiffness_stays_within_bounds_on_a_random_stream() -> None:
+    rng = np.random.default_rng(0)
+    c = make(k_free=200.0, k_max=2000.0, r=5.0, eps0=0.5)
+    seen = []
+    for _ in range(400):
+        o = obs(vel=rng.normal(0, 0.2, 2), force=rng.normal(0, 5.0, 2))
+        c.step(o, target())
+        s = c.signals()
+        seen.append(s["stiffness_Npm"])
+        assert 0.0 <= s["lambda"] <= 1.0
+        assert 200.0 - 1e-9 <= s["stiffness_Npm"] <= 2000.0 + 1e-9
+    assert c.model.ready, "the frozen GMM fit after its 50-point window"
+    assert np.isfinite(c.signals()["pred_force_N"])
+    assert len(set(np.round(seen, 6))) > 1, "stiffness adapted"
+
+
+def test_non_adaptive_baseline_is_fixed_at_k_max() -> None:
+    c = make(adaptive=False, k_free=100.0, k_max=900.0)
+    for _ in range(100):
+        u = c.step(obs(pos=(0.01, 0.0), vel=(0.0, 0.0)), target())
+        assert c.signals()["stiffness_Npm"] == 900.0
+    # no feed-forward: the command is the impedance law alone
+    kd = 2.0 * math.sqrt(900.0)
+    assert u.force[0] == pytest.approx(-900.0 * 0.01 - kd * 0.0)
+
+
+def test_predicted_wrench_directions() -> None:
+    c = make(ff_direction="against_motion", min_speed=0.01)
+    w = c.predicted_wrench(4.0, obs(vel=(0.0, 0.5)))
+    np.testing.assert_allclose(w, [0.0, -4.0])
+    assert np.all(c.predicted_wrench(4.0, obs(vel=(0.0, 0.001))) == 0.0)
+    m = make(ff_direction="measured")
+    np.testing.assert_allclose(m.predicted_wrench(2.0, obs(force=(3.0, 4.0))), [1.2, 1.6])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "key"),
+    [
+        ({"k_free": -1.0}, "controller.k_free"),
+        ({"k_free": 500.0, "k_max": 100.0}, "controller.k_max"),
+        ({"r": 0.0}, "controller.r"),
+        ({"eps0": float("nan")}, "controller.eps0"),
+        ({"ff_direction": "sideways"}, "controller.ff_direction"),
+        ({"forward_model": {"kind": "magic"}}, "controller.forward_model.kind"),
+        ({"forward_model": {"kind": "igmm", "colour": 1}}, "controller.forward_model.colour"),
+    ],
+)
+def test_bad_parameters_name_the_key(kwargs: dict, key: str) -> None:
+    kwargs.setdefault("forward_model", FIXED)
+    with pytest.raises(ConfigError) as err:
+        AVIC(**kwargs)
+    assert err.value.key == key
