@@ -20,16 +20,49 @@ TASKS = ("smoke", "multi_spring", "porridge_stirring", "slide_surfaces_2d")
 TARGETS = {"multi_spring": 50.0}
 
 
-def bench_task(task: str, repeats: int) -> dict[str, Any]:
-    """Median timing of one fixed-impedance trial of ``task``."""
+def _components(task: str, controller: str) -> Any:
     from hydra import compose, initialize_config_dir
 
     from ccm.cli import config_dir
-    from ccm.runner import build_components, run_trial
+    from ccm.runner import build_components
 
     with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="bench"):
-        cfg = compose("config", overrides=[f"task={task}", "controller=fixed_impedance"])
-    comp = build_components(cfg)
+        cfg = compose("config", overrides=[f"task={task}", f"controller={controller}"])
+    return build_components(cfg)
+
+
+def bench_avic_step(task: str = "porridge_stirring", trials: int = 3) -> dict[str, Any]:
+    """Median cost of one AVIC ``step`` (features, IGMM update, GMR predict, Eq. 4a-4c) in the
+    closed loop of ``task``; each control step is timed on its own with perf_counter_ns."""
+    comp = _components(task, "avic")
+    sim, pattern, ctrl = comp.sim, comp.task.pattern, comp.controller
+    ns: list[int] = []
+    ctrl.reset(comp.task.dim, sim.control_dt)
+    for trial in range(trials):  # the model carries over, as in a repeated-trial experiment
+        obs, _ = sim.reset(seed=trial)
+        ctrl.reset(comp.task.dim, sim.control_dt)
+        for _ in range(int(pattern.duration / sim.control_dt)):
+            target = pattern.sample(obs.t)
+            t0 = time.perf_counter_ns()
+            cmd = ctrl.step(obs, target)
+            ns.append(time.perf_counter_ns() - t0)
+            obs, _ = sim.step(cmd)
+        ctrl.end_trial()
+    return {
+        "benchmark": "avic_step",
+        "task": task,
+        "steps": len(ns),
+        "us_per_step_median": statistics.median(ns[1000:]) / 1e3,  # after numba warm-up
+        "n_components_end": ctrl.signals()["n_components"],
+        "target_us": 25.0,
+    }
+
+
+def bench_task(task: str, repeats: int, controller: str = "fixed_impedance") -> dict[str, Any]:
+    """Median timing of one trial of ``task`` with ``controller``."""
+    from ccm.runner import run_trial
+
+    comp = _components(task, controller)
     sim_time = comp.task.pattern.duration
     walls = []
     for r in range(repeats):
@@ -40,6 +73,7 @@ def bench_task(task: str, repeats: int) -> dict[str, Any]:
     steps = len(rec)
     return {
         "task": task,
+        "controller": controller,
         "sim_time_s": sim_time,
         "control_steps": steps,
         "median_wall_s": wall,
@@ -50,30 +84,65 @@ def bench_task(task: str, repeats: int) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from ccm.bench.igmm import bench_igmm_long, bench_igmm_step
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("bench.json"))
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument(
+        "--long-steps",
+        type=int,
+        default=3_600_000,
+        help="steps of the IGMM flat-cost run (issue #3: 3.6 million)",
+    )
     args = parser.parse_args(argv)
     rows = [bench_task(t, args.repeats) for t in TASKS]
+    rows.append(bench_task("porridge_stirring", args.repeats, controller="avic"))
     print(
-        f"{'task':<20}{'sim [s]':>9}{'steps':>8}{'wall [ms]':>11}{'µs/step':>9}"
-        f"{'× real time':>13}{'target':>8}"
+        f"{'task':<20}{'controller':<17}{'sim [s]':>8}{'steps':>7}{'wall [ms]':>10}"
+        f"{'µs/step':>9}{'× real time':>13}{'target':>8}"
     )
     for r in rows:
         tgt = f"≥{r['target_x_realtime']:.0f}" if r["target_x_realtime"] else ""
         print(
-            f"{r['task']:<20}{r['sim_time_s']:>9.2f}{r['control_steps']:>8d}"
-            f"{1e3 * r['median_wall_s']:>11.1f}{r['us_per_control_step']:>9.1f}"
-            f"{r['x_realtime']:>13.1f}{tgt:>8}"
+            f"{r['task']:<20}{r['controller']:<17}{r['sim_time_s']:>8.2f}"
+            f"{r['control_steps']:>7d}{1e3 * r['median_wall_s']:>10.1f}"
+            f"{r['us_per_control_step']:>9.1f}{r['x_realtime']:>13.1f}{tgt:>8}"
         )
+    avic = bench_avic_step()
+    step = bench_igmm_step()
+    long = bench_igmm_long(n_steps=args.long_steps)
+    print()
+    print(f"{'per-step cost (median)':<58}{'µs':>8}{'target':>10}")
+    print(
+        f"{'AVIC step: IGMM update + GMR predict + Eq. 4a-4c (loop)':<58}"
+        f"{avic['us_per_step_median']:>8.1f}{'≤25':>10}"
+    )
+    print(
+        f"{'IGMM partial_fit(1 point) + GMR predict (synthetic stream)':<58}"
+        f"{step['us_per_step']:>8.1f}{'':>10}"
+    )
+    print(
+        f"IGMM over {long['steps']:,} steps: {long['us_first']:.1f} µs (first "
+        f"{long['window']:,}) -> {long['us_last']:.1f} µs (last {long['window']:,}), "
+        f"ratio {long['ratio']:.2f} (target ≤1.2)"
+    )
+    print(
+        f"  model memory {long['model_bytes_start']} -> {long['model_bytes_end']} B; "
+        f"tracemalloc net per window {long['tracemalloc_net_bytes_early_window']} -> "
+        f"{long['tracemalloc_net_bytes_late_window']} B"
+    )
     result = {
-        "benchmark": "pymunk2d tasks, fixed_impedance, one trial each",
+        "benchmark": "ccm make bench",
         "repeats": args.repeats,
         "statistic": "median",
         "machine": {"python": platform.python_version(), "processor": platform.machine()},
         "rows": rows,
+        "avic_step": avic,
+        "igmm_step": step,
+        "igmm_long": long,
     }
-    args.out.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    args.out.write_text(json.dumps(result, indent=2, default=str) + "\n", encoding="utf-8")
     print(f"wrote {args.out}")
     return 0
 

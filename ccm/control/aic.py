@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ccm.control.base import Controller
-from ccm.control.impedance import FixedImpedance
+from ccm.control.impedance import hybrid_loop
 from ccm.errors import check_positive, constructor_kwargs
 from ccm.types import Command, Observation, TargetSample
 
@@ -104,20 +104,7 @@ class AIC(Controller):
         self.lam = check_positive(f"{key}.attractor_rate", attractor_rate)
         # Only the force loop, inertial feed-forward and orientation parts of FixedImpedance
         # are used; its own stiffness/damping are never applied (zero gains are passed).
-        self.hybrid = FixedImpedance(
-            stiffness=1.0,
-            damping_rule="fixed",
-            damping=0.0,
-            mass_kg=mass_kg,
-            inertia_feedforward=inertia_feedforward,
-            rot_stiffness=rot_stiffness,
-            rot_damping=rot_damping,
-            force_kp=force_kp,
-            force_ki=force_ki,
-            force_damping=force_damping,
-            force_integral_limit_N=force_integral_limit_N,
-            key=key,
-        )
+        self.hybrid = hybrid_loop(key, locals())
         self._key = key
         self.dim = 0
         self.control_dt = 0.0

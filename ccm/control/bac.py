@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from ccm.control.base import Controller
-from ccm.control.impedance import DAMPING_RULES, FixedImpedance, damping_from_rule
+from ccm.control.impedance import DAMPING_RULES, damping_from_rule, hybrid_loop
 from ccm.errors import (
     ConfigError,
     check_choice,
@@ -135,20 +135,7 @@ class BAC(Controller):
         self.fixed_damping = check_nonneg(f"{key}.damping", damping)
         # Only the force loop, inertial feed-forward and orientation parts of FixedImpedance
         # are used; K(k) and D(k) are passed per call.
-        self.hybrid = FixedImpedance(
-            stiffness=1.0,
-            damping_rule="fixed",
-            damping=0.0,
-            mass_kg=mass_kg,
-            inertia_feedforward=inertia_feedforward,
-            rot_stiffness=rot_stiffness,
-            rot_damping=rot_damping,
-            force_kp=force_kp,
-            force_ki=force_ki,
-            force_damping=force_damping,
-            force_integral_limit_N=force_integral_limit_N,
-            key=key,
-        )
+        self.hybrid = hybrid_loop(key, locals())
         self.mass_kg = self.hybrid.mass_kg
         self._key = key
         self.dim = 0

@@ -168,3 +168,28 @@ class FixedImpedance(Controller):
 
     def signals(self) -> dict[str, float]:
         return dict(self._signals)
+
+
+#: FixedImpedance parameters that controllers built on Eq. 1 share (force loop, H term, rotation)
+LOOP_PARAMS = (
+    "mass_kg", "inertia_feedforward", "rot_stiffness", "rot_damping", "force_kp", "force_ki",
+    "force_damping", "force_integral_limit_N",
+)  # fmt: skip
+
+
+def hybrid_loop(key: str, params: Mapping[str, Any]) -> FixedImpedance:
+    """A FixedImpedance used only for its force loop, inertial feed-forward and orientation
+    terms; stiffness and damping are passed per call to :meth:`FixedImpedance.motion_force`.
+
+    Args:
+        key: config prefix for errors.
+        params: a mapping holding at least :data:`LOOP_PARAMS` (e.g. a constructor's
+            ``locals()``); other entries are ignored.
+    """
+    return FixedImpedance(
+        stiffness=1.0,
+        damping_rule="fixed",
+        damping=0.0,
+        key=key,
+        **{k: params[k] for k in LOOP_PARAMS},
+    )
