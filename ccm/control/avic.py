@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.control.impedance import FixedImpedance, damping_from_rule
+from ccm.control.impedance import FixedImpedance
 from ccm.errors import ConfigError, check_choice, check_nonneg, check_positive, constructor_kwargs
 from ccm.learn.forward_model import N_STATE, magnitudes, make_forward_model
 from ccm.types import Command, Observation, TargetSample
@@ -123,6 +123,15 @@ class AVIC(FixedImpedance):
         ez = math.exp(z)
         return ez / (1.0 + ez)
 
+    def damping_for(self, kp: float) -> float:
+        """K_d for a scalar K_p under the configured rule (scalar fast path of
+        :func:`damping_from_rule`)."""
+        if self.damping_rule == "critical":
+            return 2.0 * self.damping_ratio * math.sqrt(kp * self.mass_kg)
+        if self.damping_rule == "paper":
+            return math.sqrt(kp) / 4.0
+        return self.fixed_damping
+
     def stiffness_for(self, lam: float) -> float:
         """K_p of Eq. 4b."""
         return self.k_free + (1.0 - lam) * (self.k_max - self.k_free)
@@ -135,16 +144,12 @@ class AVIC(FixedImpedance):
         err = math.nan
         if self._s_prev is not None:
             if self._pred is not None and self.model.ready:
-                err = float(np.linalg.norm(d - self._pred))
+                err = math.hypot(d[0] - self._pred[0], d[1] - self._pred[1])
                 self._lam = self.logistic(err)
             self.model.update(self._s_prev, d)
         lam = self._lam if self.adaptive else 0.0
         kp = self.stiffness_for(lam) if self.adaptive else self.k_max
-        kd = float(
-            damping_from_rule(
-                kp, self.damping_rule, self.mass_kg, self.damping_ratio, self.fixed_damping
-            )
-        )
+        kd = self.damping_for(kp)
         u_motion, u_force = self.motion_force(obs, target, kp, kd)
         self._pred = self.model.predict(s) if self.model.ready else None
         u = u_motion + u_force

@@ -133,9 +133,14 @@ class FixedImpedance(Controller):
 
         Shared by every controller built on Eq. 1 so the force loop is written once.
         """
-        u_motion = kp * (target.position - obs.position) + kd * (target.velocity - obs.lin_vel)
+        # in-place arithmetic: this runs every 1 ms step and each temporary costs ~0.5 µs
+        u_motion = target.position - obs.position
+        u_motion *= kp
+        e_vel = target.velocity - obs.lin_vel
+        e_vel *= kd
+        u_motion += e_vel
         if self.inertia_feedforward:
-            u_motion = u_motion + self.mass_kg * target.acceleration
+            u_motion += self.mass_kg * target.acceleration
         d = target.force_dir
         if d is None:
             self._force_int = 0.0
@@ -163,8 +168,10 @@ class FixedImpedance(Controller):
 
     def step(self, obs: Observation, target: TargetSample) -> Command:
         """Eq. 1 (seed A) with constant K_p, K_d and u_ff = 0."""
-        u_motion, u_force = self.motion_force(obs, target, self._kp, self._kd)
-        return Command(force=u_motion + u_force, torque=self.rotation_torque(obs, target))
+        u, u_force = self.motion_force(obs, target, self._kp, self._kd)
+        if u_force is not self._zero:
+            u += u_force
+        return Command(force=u, torque=self.rotation_torque(obs, target))
 
     def signals(self) -> dict[str, float]:
         return dict(self._signals)

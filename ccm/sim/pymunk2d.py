@@ -177,6 +177,7 @@ class Pymunk2D(Simulator):
     def reset(self, seed: int | None = None) -> tuple[Observation, StepInfo]:
         """Rebuild the space, put the EE at ``start`` at rest, seed the sensor noise."""
         self._space, self._body = self._build_space()
+        self._state: tuple[float, ...] | None = None
         self._rng = np.random.default_rng(seed)
         self.sensor.reset(self._rng)
         self._steps = 0
@@ -211,8 +212,8 @@ class Pymunk2D(Simulator):
         dt = self.dt
         sfx = sfy = stq = skx = sky = 0.0  # sums of external fx, fy, torque, contact fx, fy
         n_contacts, mu = 0, -1.0
-        x, y = body.position
-        vx, vy = body.velocity
+        # the state read at the end of the previous step (nothing else moves the body)
+        x, y, vx, vy = self._state if self._state is not None else (*body.position, *body.velocity)
         for _ in range(self.control_decimation):
             fsx, fsy = self._spring_force(x, y)
             c = self._viscosity(x, y) if self._has_viscous else 0.0
@@ -244,8 +245,12 @@ class Pymunk2D(Simulator):
             np.array([skx * k, sky * k]),
             n_contacts,
             mu,
-            (x, y, vx, vy),
+            self._remember((x, y, vx, vy)),
         )
+
+    def _remember(self, state: tuple[float, float, float, float]) -> tuple[float, ...]:
+        self._state = state
+        return state
 
     def close(self) -> None:
         """Drop the pymunk space."""

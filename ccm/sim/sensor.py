@@ -160,6 +160,9 @@ class FTSensor:
             New arrays ``(force_measured, torque_measured)``.
         """
         if self._ideal:
+            if isinstance(force, np.ndarray) and force.shape == (self.force_dim,):
+                if isinstance(torque, np.ndarray) and torque.shape == (self.torque_dim,):
+                    return force.astype(float), torque.astype(float)  # fresh copies
             return (
                 np.array(force, dtype=float).reshape(self.force_dim),
                 np.array(torque, dtype=float).reshape(self.torque_dim),
