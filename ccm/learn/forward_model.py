@@ -121,7 +121,7 @@ class FrozenGMMForwardModel:
     def __init__(
         self,
         fit_steps: int = 6000,
-        n_components: int = 8,
+        n_components: int = 1,
         feature_scale: Sequence[float] = DEFAULT_SCALE,
         random_state: int = 0,
         reg_covar: float = 1e-6,
