@@ -128,6 +128,10 @@ def main(argv: list[str] | None = None) -> int:
         f"ratio {long['ratio']:.2f} (target ≤1.2)"
     )
     print(
+        f"  robust: median of the first vs last 10 windows {long['us_first_10_windows']:.1f} -> "
+        f"{long['us_last_10_windows']:.1f} µs, ratio {long['ratio_10_windows']:.2f}"
+    )
+    print(
         f"  model memory {long['model_bytes_start']} -> {long['model_bytes_end']} B; "
         f"tracemalloc net per window {long['tracemalloc_net_bytes_early_window']} -> "
         f"{long['tracemalloc_net_bytes_late_window']} B"
