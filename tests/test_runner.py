@@ -1,0 +1,73 @@
+"""Runner: phases carry the controller over, trials are numbered across phases, the summary
+averages the last phase, and bad phase/metric specs are one-line config errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from ccm.errors import ConfigError
+from ccm.metrics import check_extra_metrics
+from ccm.runner import check_experiment, plan_experiment, run_experiment, trial_seed
+
+PHASES = (
+    "experiment.phases=[{name: train, trials: 2,"
+    " overrides: ['task.scene.springs.0.stiffness=10.0']},"
+    " {name: test, trials: 1, overrides: []}]"
+)
+
+
+def test_phases_share_the_controller_and_number_trials(composer, tmp_path: Path) -> None:
+    overrides = [
+        "experiment=single",
+        "task=smoke",
+        "controller=bac",
+        "experiment.figures=false",
+        PHASES,
+    ]
+    cfg = composer(overrides)
+    plan = plan_experiment(cfg, lambda extra: composer([*overrides, *extra]), 1)
+    ((cond, phases),) = plan
+    assert [p.name for p, _ in phases] == ["train", "test"]
+    train_scene = phases[0][1].sim.scene
+    assert train_scene.springs[0].stiffness == 10.0
+    assert phases[1][1].sim.scene.springs[0].stiffness == 40.0  # smoke's own spring
+
+    summary = run_experiment(
+        cfg, lambda extra: composer([*overrides, *extra]), tmp_path, show_progress=False
+    )
+    trials = summary["trials"]
+    assert [(t["phase"], t["trial"]) for t in trials] == [("train", 1), ("train", 2), ("test", 3)]
+    assert [t["seed"] for t in trials] == [trial_seed(0, k) for k in (1, 2, 3)]
+    # the summary's condition figure is the test phase alone
+    (name,) = summary["conditions"]
+    assert summary["conditions"][name]["rms_tracking_error_m"] == pytest.approx(
+        trials[-1]["rms_tracking_error_m"]
+    )
+    # BAC learned in the train phase: its test trial starts from a learned (stiffer) profile
+    assert trials[-1]["mean_stiffness_Npm"] != trials[0]["mean_stiffness_Npm"]
+    on_disk = json.loads((tmp_path / "summary.json").read_text())
+    assert on_disk == summary
+    assert len(list((tmp_path / "timeseries" / name).glob("trial_*.csv"))) == 3
+
+
+@pytest.mark.parametrize(
+    ("override", "key"),
+    [
+        ("experiment.phases=[{name: a, trials: 0}]", "experiment.phases[0].trials"),
+        ("experiment.phases=[{name: a, colour: red}]", "experiment.phases[0]"),
+        ("experiment.phases=[{name: 'a b'}]", "experiment.phases[0].name"),
+        ("experiment.metrics=[accuracy]", "experiment.metrics"),
+    ],
+)
+def test_bad_phase_or_metric_specs(composer, override: str, key: str) -> None:
+    overrides = ["experiment=single", override]
+    cfg = composer(overrides)
+    with pytest.raises(ConfigError) as err:
+        check_extra_metrics(cfg)
+        plan_experiment(
+            cfg, lambda extra: composer([*overrides, *extra]), check_experiment(cfg)["trials"]
+        )
+    assert err.value.key == key
