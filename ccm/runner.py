@@ -135,7 +135,11 @@ def plan_experiment(
 
 def build_components(cfg: DictConfig) -> Components:
     """Build and validate simulator, task and controller from one composed config."""
-    sim = make_sim(plain(cfg.sim), plain(cfg.task.get("scene", {})), plain(cfg.task.get("start")))
+    start = list(plain(cfg.task.get("start")) or [])
+    orientation = plain(cfg.task.get("orientation"))
+    if orientation and cfg.task.get("dim") == 3:  # the 3D start pose includes the tool's quaternion
+        start += list(orientation)
+    sim = make_sim(plain(cfg.sim), plain(cfg.task.get("scene", {})), start)
     task = load_task(cfg.task, sim.control_dt)
     if task.dim != sim.dim:
         raise ConfigError("task.dim", f"task is {task.dim}-D but sim={cfg.sim.name} is {sim.dim}-D")

@@ -17,11 +17,24 @@ def test_every_group_has_options() -> None:
         assert group_options(group), f"config group {group}/ is empty"
 
 
+def _partner(group: str, option: str) -> list[str]:
+    """A sim/task of matching dimension for 3-D options (the defaults are 2-D)."""
+    from omegaconf import OmegaConf
+
+    node = OmegaConf.load(config_dir() / group / f"{option}.yaml")
+    if group == "task" and node.get("dim") == 3:
+        return ["sim=pybullet3d"]
+    if group == "sim" and option == "pybullet3d":
+        return ["task=press_slide_3d"]
+    return []
+
+
 @pytest.mark.parametrize(("group", "option"), ALL_OPTIONS, ids=[f"{g}={o}" for g, o in ALL_OPTIONS])
 def test_option_composes_and_builds(composer, group: str, option: str) -> None:
-    cfg = composer([f"{group}={option}"])
+    overrides = [f"{group}={option}", *_partner(group, option)]
+    cfg = composer(overrides)
     trials = check_experiment(cfg)["trials"]
-    plan = plan_experiment(cfg, lambda extra: composer([f"{group}={option}", *extra]), trials)
+    plan = plan_experiment(cfg, lambda extra: composer([*overrides, *extra]), trials)
     assert plan
     for _, phases in plan:
         for _, comp in phases:

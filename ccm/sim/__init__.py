@@ -11,6 +11,7 @@ from ccm.sim.base import Simulator
 #: backend name -> "module:Class", imported lazily (PyBullet is heavy; see FIELD-NOTES)
 BACKENDS: dict[str, str] = {
     "pymunk2d": "ccm.sim.pymunk2d:Pymunk2D",
+    "pybullet3d": "ccm.sim.pybullet3d:PyBullet3D",
 }
 
 
