@@ -1,0 +1,412 @@
+"""The Panda with its block tool for the PyBullet 3D backend (:mod:`ccm.sim.pybullet3d`).
+
+URDF preparation (fingers removed, the block tool fixed to ``panda_hand``), loading, and the
+kinematics/dynamics helpers of the backend's torque loop and sensing: tool-point state and
+Jacobian, start-pose inverse kinematics, inverse dynamics, task-space inertia and the
+dynamically consistent null-space projection, orientation error, F/T gravity compensation
+and the contact ground truth. Functions take the PyBullet module ``p`` and the physics client
+id ``cid`` explicitly.
+
+Modelling choices (the torque loop and the table patches are described in
+:mod:`ccm.sim.pybullet3d`):
+
+* **Robot and tool.** ``franka_panda/panda.urdf`` from ``pybullet_data`` with a fixed base.
+  The fingers (two prismatic joints that would need their own controller) are removed and a
+  rigid box, the *tool*, is attached to ``panda_hand`` by a fixed URDF joint
+  (``ccm_tool_joint``) where the fingers were mounted. The tool is a link of the robot's
+  multibody, not a second body held by a constraint, so the Jacobian, the inverse dynamics
+  and the F/T sensor all see the same rigid tool and the contacts are clean box contacts.
+  The modified URDF is written to a temporary directory (meshes by absolute path) and
+  deleted after loading.
+* **Tool point.** The centre of the tool's bottom face (the face that touches the table
+  when the tool points down). Positions, velocities, the Jacobian, the commanded wrench and
+  the measured wrench all refer to this point; vectors are in the world frame.
+* **F/T sensor.** ``enableJointForceTorqueSensor`` on ``ccm_tool_joint`` (hand → tool), so
+  only the tool lies beyond the sensor, like a wrist sensor carrying the tool. PyBullet
+  reports the wrench the parent (hand) exerts on the child (tool), in the child's Bullet
+  link frame, i.e. its *centre-of-mass* frame: the moment is about the tool's centre of mass
+  ``c``, not about the URDF joint origin (measured: a tilted tool at rest reads zero moment;
+  ``tests/test_pybullet_physics.py`` checks it against the contact truth). The reading is
+  rotated to the world frame, the tool's weight is removed and the result is expressed as
+  the external wrench *on* the tool at the tool point ``p``::
+
+      F_ext = −R F_joint − m_tool g
+      M_ext = −R M_joint + (c − p) × F_ext
+
+  Only the static part is compensated: the tool's inertial wrench (``m_tool a_c`` and
+  ``I α + ω × I ω``) stays in the reading. It is ``m_tool |a|``, i.e. 0.15 N per m/s² for
+  the default 0.15 kg tool. Then :class:`ccm.sim.sensor.FTSensor` adds bias and noise. With
+  ``control_decimation > 1`` the reading is the mean over the control period's physics steps.
+* **Ground truth.** ``getContactPoints`` on the tool link: normal force (entry 9) along the
+  normal on B (entry 7, pointing from the other body to the tool) minus the two lateral
+  friction forces (entries 10/12 along 11/13: PyBullet reports them as acting on body B,
+  measured against the F/T reading and the commanded force), summed over points; the
+  torque is about the tool point. ``surface_friction`` is the friction of the body carrying
+  the largest normal force. Bullet multiplies the two bodies' friction (and restitution)
+  coefficients, so the tool has friction 1 and restitution 1 and the surface's values are the
+  effective ones, as in the 2D backend.
+* **Compliant tool contact.** The tool's contacts use Bullet's spring-damper contact model
+  (``contact_stiffness`` 1e5 N/m, ``contact_damping`` 1e3 N s/m, both chosen). They act
+  per contact point: a flat face resting on 4 points measured 4e5 N/m (0.035 mm sink at
+  10 N, 0.060 mm at 20 N). With Bullet's default rigid contacts (and with 1e6 N/m) the flat
+  tool face sliding under a 10 N press at friction 0.8 chattered (normal-force std ≈ 40 N
+  on a 10 N mean, edge contacts, hopping); with these values it slides smoothly and
+  friction/normal = 0.800.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ccm.errors import ConfigError
+from ccm.sim.pybullet_scene import PyBullet3DConfig, ToolSpec
+
+GRAVITY = 9.81  # m/s^2, along -z
+N_ARM = 7  # Panda arm joints (the only movable joints once the fingers are removed)
+#: tool pointing straight down: 180° about x, quaternion (x, y, z, w)
+DOWN = (1.0, 0.0, 0.0, 0.0)
+_TOOL_MOUNT_Z = 0.0584  # m, where the fingers attach in panda_hand's frame (panda.urdf)
+
+
+# --------------------------------------------------------------------------- math helpers
+
+
+def _quat_rotate(q: Sequence[float], v: Sequence[float]) -> tuple[float, float, float]:
+    """Rotate ``v`` by the unit quaternion ``q`` (x, y, z, w)."""
+    x, y, z, w = q
+    vx, vy, vz = v
+    # t = 2 q_vec × v ; v' = v + w t + q_vec × t
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return (
+        vx + w * tx + (y * tz - z * ty),
+        vy + w * ty + (z * tx - x * tz),
+        vz + w * tz + (x * ty - y * tx),
+    )
+
+
+def _quat_to_matrix(q: Sequence[float]) -> np.ndarray:
+    x, y, z, w = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def orientation_error(q_des: Sequence[float], q: Sequence[float]) -> np.ndarray:
+    """Rotation vector [rad] (world frame) that takes orientation ``q`` to ``q_des``."""
+    x1, y1, z1, w1 = q_des
+    x2, y2, z2, w2 = -q[0], -q[1], -q[2], q[3]  # conjugate of q
+    # e = q_des ⊗ q⁻¹
+    ex = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
+    ey = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
+    ez = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
+    ew = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
+    if ew < 0.0:  # shortest way round
+        ex, ey, ez, ew = -ex, -ey, -ez, -ew
+    s = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if s < 1e-12:
+        return np.array([2.0 * ex, 2.0 * ey, 2.0 * ez])
+    angle = 2.0 * math.atan2(s, ew)
+    return np.array([ex, ey, ez]) * (angle / s)
+
+
+# --------------------------------------------------------------------------- robot
+
+
+def robot_urdf(tool: ToolSpec, directory: str) -> str:
+    """Write panda.urdf without fingers and with the block tool; return its path."""
+    import pybullet_data
+
+    src_dir = os.path.join(pybullet_data.getDataPath(), "franka_panda")
+    tree = ET.parse(os.path.join(src_dir, "panda.urdf"))
+    root = tree.getroot()
+    drop = {"panda_leftfinger", "panda_rightfinger", "panda_grasptarget"}
+    for el in list(root):
+        if el.tag == "link" and el.get("name") in drop:
+            root.remove(el)
+        elif el.tag == "joint":
+            child = el.find("child")
+            if child is not None and child.get("link") in drop:
+                root.remove(el)
+    for mesh in root.iter("mesh"):
+        fn = mesh.get("filename", "")
+        if fn.startswith("package://"):
+            mesh.set("filename", os.path.join(src_dir, fn[len("package://") :]))
+    sx, sy, sz = tool.size
+    m = tool.mass
+    ixx, iyy, izz = (m * (sy**2 + sz**2) / 12, m * (sx**2 + sz**2) / 12,
+                     m * (sx**2 + sy**2) / 12)  # fmt: skip
+    box = f'<geometry><box size="{sx} {sy} {sz}"/></geometry>'
+    origin = f'<origin rpy="0 0 0" xyz="0 0 {sz / 2}"/>'
+    root.append(
+        ET.fromstring(
+            f'<link name="ccm_tool"><inertial>{origin}<mass value="{m}"/>'
+            f'<inertia ixx="{ixx}" ixy="0" ixz="0" iyy="{iyy}" iyz="0" izz="{izz}"/>'
+            f"</inertial><visual>{origin}{box}"
+            '<material name="ccm_tool"><color rgba="0.9 0.4 0.1 1"/></material></visual>'
+            f"<collision>{origin}{box}</collision></link>"
+        )
+    )
+    root.append(
+        ET.fromstring(
+            '<joint name="ccm_tool_joint" type="fixed"><parent link="panda_hand"/>'
+            f'<child link="ccm_tool"/><origin rpy="0 0 0" xyz="0 0 {_TOOL_MOUNT_Z}"/></joint>'
+        )
+    )
+    path = os.path.join(directory, "panda_ccm_tool.urdf")
+    tree.write(path)
+    return path
+
+
+def load_robot(p: Any, cid: int, config: PyBullet3DConfig) -> tuple[int, int]:
+    """Load the Panda with the block tool, set up for torque control and F/T sensing.
+
+    Link and joint damping are zeroed, the tool link gets friction 1, restitution 1 and the
+    compliant contact model, the default velocity motors are switched off and the joint F/T
+    sensor on ``ccm_tool_joint`` is enabled.
+
+    Returns:
+        ``(robot, tool_link)``: the body id and the tool's link index.
+    """
+    tmp = tempfile.mkdtemp(prefix="ccm_panda_")
+    try:
+        robot = p.loadURDF(
+            robot_urdf(config.tool, tmp), [0, 0, 0], useFixedBase=True, physicsClientId=cid
+        )
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    names = {}
+    for j in range(p.getNumJoints(robot, physicsClientId=cid)):
+        info = p.getJointInfo(robot, j, physicsClientId=cid)
+        names[info[1].decode()] = j
+    arm = [names[f"panda_joint{i}"] for i in range(1, N_ARM + 1)]
+    if arm != list(range(N_ARM)):  # pragma: no cover - URDF layout changed
+        raise RuntimeError(f"unexpected Panda joint layout {names}")
+    tool_link = names["ccm_tool_joint"]
+    for link in range(-1, p.getNumJoints(robot, physicsClientId=cid)):
+        # no artificial damping, so that calculateInverseDynamics is the exact model
+        p.changeDynamics(
+            robot, link, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0,
+            physicsClientId=cid,
+        )  # fmt: skip
+    # the surface's friction/restitution become the effective ones (Bullet multiplies);
+    # compliant contact (module docstring: rigid contacts chattered sliding at mu 0.8)
+    p.changeDynamics(
+        robot, tool_link, lateralFriction=1.0, restitution=1.0,
+        contactStiffness=config.contact_stiffness,
+        contactDamping=config.contact_damping, physicsClientId=cid,
+    )  # fmt: skip
+    # torque control: switch off the default velocity motors
+    p.setJointMotorControlArray(
+        robot, arm, p.VELOCITY_CONTROL, forces=[0.0] * N_ARM, physicsClientId=cid
+    )
+    p.enableJointForceTorqueSensor(robot, tool_link, True, physicsClientId=cid)
+    return robot, tool_link
+
+
+# --------------------------------------------------------------------------- kinematics
+
+
+def tool_point_state(
+    p: Any,
+    cid: int,
+    robot: int,
+    tool_link: int,
+    tip_local: Sequence[float],
+    velocity: bool = True,
+) -> tuple[np.ndarray, tuple[float, ...], np.ndarray, np.ndarray]:
+    """Tool point position, orientation (x, y, z, w), linear and angular velocity.
+
+    ``tip_local`` is the tool point in the tool's centre-of-mass (Bullet link) frame.
+    """
+    ls = p.getLinkState(
+        robot, tool_link, computeLinkVelocity=1 if velocity else 0,
+        computeForwardKinematics=1, physicsClientId=cid,
+    )  # fmt: skip
+    com, orn = ls[0], ls[1]
+    r = _quat_rotate(orn, tip_local)
+    pos = np.array([com[0] + r[0], com[1] + r[1], com[2] + r[2]])
+    if not velocity:
+        return pos, orn, np.zeros(3), np.zeros(3)
+    v, w = ls[6], ls[7]
+    lin = np.array(
+        [
+            v[0] + w[1] * r[2] - w[2] * r[1],
+            v[1] + w[2] * r[0] - w[0] * r[2],
+            v[2] + w[0] * r[1] - w[1] * r[0],
+        ]
+    )
+    return pos, orn, lin, np.array(w)
+
+
+def tool_jacobian(
+    p: Any,
+    cid: int,
+    robot: int,
+    tool_link: int,
+    tip_local: Sequence[float],
+    q: np.ndarray,
+    dq: np.ndarray,
+) -> np.ndarray:
+    """Geometric Jacobian ``[J_v; J_ω]`` (6, 7) of the tool point in the world frame."""
+    lin, ang = p.calculateJacobian(
+        robot, tool_link, list(tip_local), q.tolist(), dq.tolist(), [0.0] * N_ARM,
+        physicsClientId=cid,
+    )  # fmt: skip
+    return np.vstack([np.asarray(lin), np.asarray(ang)])
+
+
+def set_joint_positions(p: Any, cid: int, robot: int, q: Sequence[float]) -> None:
+    """Reset the arm joints to ``q`` [rad] with zero velocity."""
+    for j in range(N_ARM):
+        p.resetJointState(robot, j, float(q[j]), 0.0, physicsClientId=cid)
+
+
+def start_ik(
+    p: Any,
+    cid: int,
+    robot: int,
+    tool_link: int,
+    tip_local: Sequence[float],
+    q_seed: Sequence[float],
+    position: np.ndarray,
+    orientation: np.ndarray,
+) -> np.ndarray:
+    """Damped least-squares IK of the tool point to a start pose, seeded from ``q_seed``.
+
+    Moves the arm while iterating. Returns the joint angles [rad], shape (7,).
+
+    Raises:
+        ConfigError: on ``task.start`` if the pose is not reachable or needs a joint angle
+            outside its limits.
+    """
+    q = np.array(q_seed, dtype=float)
+    lam2 = 1e-4
+    for _ in range(300):
+        set_joint_positions(p, cid, robot, q)
+        pos, orn, _, _ = tool_point_state(p, cid, robot, tool_link, tip_local, velocity=False)
+        e = np.concatenate([position - pos, orientation_error(orientation, orn)])
+        if float(np.max(np.abs(e))) < 1e-7:
+            break
+        jac = tool_jacobian(p, cid, robot, tool_link, tip_local, q, np.zeros(N_ARM))
+        dq = jac.T @ np.linalg.solve(jac @ jac.T + lam2 * np.eye(6), e)
+        q = q + dq
+    else:
+        raise ConfigError(
+            "task.start",
+            f"pose {np.round(position, 4).tolist()} is not reachable by the "
+            f"Panda tool (IK residual {float(np.linalg.norm(e)):.3g})",
+        )
+    for j in range(N_ARM):
+        lo, hi = p.getJointInfo(robot, j, physicsClientId=cid)[8:10]
+        if not lo - 1e-6 <= q[j] <= hi + 1e-6:
+            raise ConfigError(
+                "task.start",
+                f"pose {np.round(position, 4).tolist()} needs panda_joint{j + 1} "
+                f"= {q[j]:.3f} rad, outside its limits [{lo:.3f}, {hi:.3f}] "
+                "(try another start or sim.rest_posture)",
+            )
+    return q
+
+
+# --------------------------------------------------------------------------- dynamics
+
+
+def inverse_dynamics(p: Any, cid: int, robot: int, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """``h(q, q̇)``: gravity + Coriolis joint torques (inverse dynamics at zero acceleration)."""
+    return np.asarray(
+        p.calculateInverseDynamics(
+            robot, q.tolist(), dq.tolist(), [0.0] * N_ARM, physicsClientId=cid
+        )
+    )
+
+
+def task_inertia(
+    p: Any, cid: int, robot: int, q: np.ndarray, jac: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(M⁻¹ Jᵀ, Λ)`` with the task-space inertia ``Λ = (J M⁻¹ Jᵀ)⁻¹``.
+
+    Λ uses the pseudo-inverse, so it stays finite near singular configurations.
+    """
+    mass = np.asarray(p.calculateMassMatrix(robot, q.tolist(), physicsClientId=cid))
+    minv_jt = np.linalg.solve(mass, jac.T)  # M⁻¹ Jᵀ
+    lam = np.linalg.pinv(jac @ minv_jt)  # Λ = (J M⁻¹ Jᵀ)⁻¹ (pinv: safe near singular)
+    return minv_jt, lam
+
+
+def nullspace_projection(
+    jac: np.ndarray, lam: np.ndarray, minv_jt: np.ndarray, tau0: np.ndarray
+) -> np.ndarray:
+    """``N τ₀`` with the dynamically consistent projector ``N = I − Jᵀ Λ J M⁻¹``."""
+    # N τ₀ = τ₀ − Jᵀ Λ J M⁻¹ τ₀ ; J M⁻¹ τ₀ = (M⁻¹ Jᵀ)ᵀ τ₀ since M is symmetric
+    return tau0 - jac.T @ (lam @ (minv_jt.T @ tau0))
+
+
+# --------------------------------------------------------------------------- sensing
+
+
+def ft_external(
+    p: Any,
+    cid: int,
+    robot: int,
+    tool_link: int,
+    tip_local: Sequence[float],
+    weight: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """External wrench on the tool at the tool point from the joint F/T sensor.
+
+    ``weight`` is the tool's weight vector ``m_tool g`` [N] in the world frame.
+    """
+    reading = p.getJointState(robot, tool_link, physicsClientId=cid)[2]
+    ls = p.getLinkState(robot, tool_link, computeForwardKinematics=1, physicsClientId=cid)
+    rot = _quat_to_matrix(ls[1])
+    # force exerted by the hand on the tool and its moment about the tool's centre of
+    # mass (Bullet's link frame is the inertial frame), rotated to the world frame
+    f_joint = rot @ np.asarray(reading[:3])
+    m_joint = rot @ np.asarray(reading[3:])
+    f_ext = -f_joint - weight
+    # static balance about the centre of mass (the weight has no moment there), then
+    # move the moment to the tool point p: M_p = M_c + (c - p) x F = M_c - r x F
+    r = rot @ np.asarray(tip_local)
+    m_ext = -m_joint - np.cross(r, f_ext)
+    return f_ext, m_ext
+
+
+def contact_wrench(
+    pts: Sequence[Sequence[Any]], tip: np.ndarray, body_friction: Mapping[int, float]
+) -> tuple[np.ndarray, np.ndarray, int, float]:
+    """Ground-truth contact force/torque (about ``tip``), count and surface friction.
+
+    Args:
+        pts: ``getContactPoints`` of the tool link (body A), non-empty.
+        tip: the tool point [m].
+        body_friction: friction of each static body by body id.
+    """
+    f = np.zeros(3)
+    m = np.zeros(3)
+    best, mu, n = -1.0, -1.0, 0
+    for c in pts:
+        fn = c[9]
+        # PyBullet's lateral friction entries act on body B along the listed directions,
+        # so the tool (body A) gets the opposite (checked against the F/T reading)
+        fc = fn * np.asarray(c[7]) - c[10] * np.asarray(c[11]) - c[12] * np.asarray(c[13])
+        f += fc
+        m += np.cross(np.asarray(c[5]) - tip, fc)
+        n += 1
+        if fn > best:
+            best = fn
+            mu = body_friction.get(c[2], -1.0)
+    return f, m, n, mu
