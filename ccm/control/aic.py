@@ -11,14 +11,12 @@ as the attractor of the generative model; there is no explicit stiffness.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from typing import Any
 
 import numpy as np
 
 from ccm.control.base import Controller
 from ccm.control.impedance import hybrid_loop
-from ccm.errors import check_positive, constructor_kwargs
+from ccm.errors import check_positive
 from ccm.types import Command, Observation, TargetSample
 
 
@@ -109,11 +107,6 @@ class AIC(Controller):
         self.dim = 0
         self.control_dt = 0.0
         self._signals: dict[str, float] = {}
-
-    @classmethod
-    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> AIC:
-        """Build from a plain ``controller`` config mapping (``type``/``description`` ignored)."""
-        return cls(**constructor_kwargs(cls, cfg, key), key=key)
 
     @property
     def effective_stiffness(self) -> float:

@@ -11,7 +11,6 @@ same number of control steps in every trial (seed A §4.2.3).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 import numpy as np
 
@@ -23,7 +22,6 @@ from ccm.errors import (
     check_finite,
     check_nonneg,
     check_positive,
-    constructor_kwargs,
 )
 from ccm.types import Command, Observation, TargetSample
 
@@ -146,11 +144,6 @@ class BAC(Controller):
         self._eps: list[np.ndarray] = []
         self._ep: list[np.ndarray] = []
         self._signals: dict[str, float] = {}
-
-    @classmethod
-    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> BAC:
-        """Build from a plain ``controller`` config mapping (``type``/``description`` ignored)."""
-        return cls(**constructor_kwargs(cls, cfg, key), key=key)
 
     def reset(self, dim: int, control_dt: float) -> None:
         """Start a trial at index 0; the learned profiles are kept."""

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from typing import Any, Self
 
+from ccm.errors import constructor_kwargs
 from ccm.types import Command, Observation, TargetSample
 
 
@@ -14,6 +17,12 @@ class Controller(ABC):
     (pose, twist, measured wrench, time) and the target pattern sample. Controllers that
     learn across trials override :meth:`end_trial`.
     """
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> Self:
+        """Build from a plain ``controller`` config mapping: every key must be a constructor
+        argument (``type``/``description`` are bookkeeping and ignored)."""
+        return cls(**constructor_kwargs(cls, cfg, key), key=key)  # type: ignore[call-arg]
 
     def reset(self, dim: int, control_dt: float) -> None:
         """Prepare for a new trial in a ``dim``-dimensional task space at period ``control_dt``."""

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from ccm.control.base import Controller
-from ccm.errors import ConfigError, check_choice, check_nonneg, check_positive, constructor_kwargs
+from ccm.errors import ConfigError, check_choice, check_nonneg, check_positive
 from ccm.types import Command, Observation, TargetSample
 
 DAMPING_RULES = ("critical", "paper", "fixed")
@@ -92,11 +92,6 @@ class FixedImpedance(Controller):
         self.dim = 0
         self.control_dt = 0.0
         self._signals: dict[str, float] = {}
-
-    @classmethod
-    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> FixedImpedance:
-        """Build from a plain ``controller`` config mapping (``type``/``description`` ignored)."""
-        return cls(**constructor_kwargs(cls, cfg, key), key=key)
 
     def reset(self, dim: int, control_dt: float) -> None:
         super().reset(dim, control_dt)

@@ -10,14 +10,13 @@ end-effector follow the reference model.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from ccm.control.base import Controller
 from ccm.control.impedance import hybrid_loop
-from ccm.errors import ConfigError, check_finite, check_nonneg, check_positive, constructor_kwargs
+from ccm.errors import ConfigError, check_finite, check_nonneg, check_positive
 from ccm.types import Command, Observation, TargetSample
 
 
@@ -152,11 +151,6 @@ class MRAC(Controller):
         self.dim = 0
         self.control_dt = 0.0
         self._signals: dict[str, float] = {}
-
-    @classmethod
-    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> MRAC:
-        """Build from a plain ``controller`` config mapping (``type``/``description`` ignored)."""
-        return cls(**constructor_kwargs(cls, cfg, key), key=key)
 
     def reset(self, dim: int, control_dt: float) -> None:
         """Start a trial: reference model re-initialised at the first observation, gains at t=0."""
