@@ -146,7 +146,7 @@ class FixedImpedance(Controller):
         f_contact = -float(d @ obs.force)  # force the end-effector exerts on the environment
         err = target.force_mag - f_contact
         lim = self.force_integral_limit_N / self.force_ki if self.force_ki > 0 else 0.0
-        self._force_int = float(np.clip(self._force_int + err * self.control_dt, -lim, lim))
+        self._force_int = min(max(self._force_int + err * self.control_dt, -lim), lim)
         mag = target.force_mag + self.force_kp * err + self.force_ki * self._force_int
         u_force = d * mag - d * (self.force_damping * float(d @ obs.lin_vel))
         self._signals["force_error_N"] = err

@@ -47,17 +47,23 @@ class Simulator(ABC):
         """Release backend resources."""
 
 
+def all_finite(*arrays: np.ndarray) -> bool:
+    """Whether every entry of the (small) arrays is finite: one float sum, ~10x cheaper than
+    ``np.all(np.isfinite(...))`` on 3-7 entries. A sum of finite values beyond ~1e308 also
+    reads as non-finite, which only a runaway state reaches."""
+    return math.isfinite(sum(sum(a.tolist()) for a in arrays))
+
+
 def check_state_finite(obs: Observation, max_speed: float) -> str | None:
     """Return a reason string if the state has diverged (NaN/inf or speed above ``max_speed``).
 
     Called every control step, so the common path is a few float operations.
     """
-    vel = obs.lin_vel.tolist()
-    if not math.isfinite(sum(obs.position.tolist()) + sum(vel) + sum(obs.force.tolist())):
+    if not all_finite(obs.position, obs.lin_vel, obs.force):
         for name in ("position", "lin_vel", "force"):
             if not np.all(np.isfinite(getattr(obs, name))):
                 return f"non-finite {name} at t={obs.t:.3f} s"
-    speed = math.hypot(*vel)
+    speed = math.hypot(*obs.lin_vel.tolist())
     if speed > max_speed:
         return (
             f"end-effector speed {speed:.3g} m/s exceeds sim.max_speed={max_speed} m/s "

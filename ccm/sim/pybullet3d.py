@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from ccm.errors import ConfigError, SimulationDiverged, check_vector
-from ccm.sim.base import Simulator
+from ccm.sim.base import Simulator, all_finite
 from ccm.sim.pybullet_robot import (
     DOWN,
     GRAVITY,
@@ -75,7 +75,8 @@ from ccm.sim.pybullet_scene import (
     TablePatch,
     TableSpec,
     ToolSpec,
-    grid_cells,
+    boxed_table_parts,
+    contact_split,
 )
 from ccm.sim.sensor import FTSensor
 from ccm.types import Command, Observation, StepInfo
@@ -143,6 +144,7 @@ class PyBullet3D(Simulator):
         self._tool_link = -1
         self._arm = list(range(N_ARM))
         self._body_friction: dict[int, float] = {}
+        self._box_bodies: set[int] = set()
         self._q_rest = np.zeros(N_ARM)
         self._table_body = -1
         self._table_mu = -1.0
@@ -196,6 +198,7 @@ class PyBullet3D(Simulator):
         self._build_scene()
         self._robot, self._tool_link = load_robot(p, cid, self.config)
         self._place_at_start()
+        self._refresh_tip()
         self._rng = np.random.default_rng(seed)
         self.sensor.reset(self._rng)
         # one uncounted settling step with a zero wrench, so the joint F/T sensor holds a
@@ -206,10 +209,11 @@ class PyBullet3D(Simulator):
             self._robot, self._arm, p.TORQUE_CONTROL, forces=tau.tolist(), physicsClientId=cid
         )
         p.stepSimulation(physicsClientId=cid)
+        self._refresh_tip()
         self._steps = 0
         f, m = self._ft_external()
-        kf, km, n, mu = self._contacts()
-        return self._output(f, m, kf, km, n, mu)
+        kf, km, n, mu, split = self._contacts()
+        return self._output(f, m, kf, km, n, mu, split)
 
     def step(self, command: Command) -> tuple[Observation, StepInfo]:
         """Hold ``command`` for ``control_decimation`` physics steps (zero-order hold).
@@ -226,16 +230,13 @@ class PyBullet3D(Simulator):
                 f"{np.shape(t_cmd)}"
             )
         wrench = np.concatenate([np.asarray(f_cmd, float), np.asarray(t_cmd, float)])
-        if not np.all(np.isfinite(wrench)):
+        if not all_finite(wrench):
             raise SimulationDiverged(
                 f"non-finite command force={np.asarray(f_cmd).tolist()} "
                 f"torque={np.asarray(t_cmd).tolist()} at t={self._steps * self.dt:.3f} s"
             )
         p, cid = self._p, self._client
-        sf = np.zeros(3)
-        sm = np.zeros(3)
-        skf = np.zeros(3)
-        skm = np.zeros(3)
+        total: list[np.ndarray] | None = None  # sums of f, m, kf, km, split over the period
         n, mu = 0, -1.0
         for _ in range(self.control_decimation):
             self._update_patch_friction()
@@ -244,15 +245,17 @@ class PyBullet3D(Simulator):
                 self._robot, self._arm, p.TORQUE_CONTROL, forces=tau.tolist(), physicsClientId=cid
             )
             p.stepSimulation(physicsClientId=cid)
+            self._refresh_tip()
             self._steps += 1
             f, m = self._ft_external()
-            kf, km, n, mu = self._contacts()
-            sf += f
-            sm += m
-            skf += kf
-            skm += km
-        k = 1.0 / self.control_decimation
-        return self._output(sf * k, sm * k, skf * k, skm * k, n, mu)
+            kf, km, n, mu, split = self._contacts()
+            parts = [f, m, kf, km, split]
+            total = parts if total is None else [a + b for a, b in zip(total, parts, strict=True)]
+        assert total is not None
+        if self.control_decimation > 1:
+            total = [a / self.control_decimation for a in total]
+        f, m, kf, km, split = total
+        return self._output(f, m, kf, km, n, mu, split)
 
     def close(self) -> None:
         """Disconnect this instance's physics client."""
@@ -325,9 +328,11 @@ class PyBullet3D(Simulator):
                 self._table_mu = table.friction
             else:
                 self._boxed_table(table, grey, blue)
+        self._box_bodies = set()
         for b in self.scene.boxes:
             half = [s / 2.0 for s in b.size]
-            self._static_box(b.center, half, b.friction, b.restitution, (0.5, 0.5, 0.5, 1.0))
+            body = self._static_box(b.center, half, b.friction, b.restitution, (0.5, 0.5, 0.5, 1.0))
+            self._box_bodies.add(body)
 
     def _visual_box(
         self, center: Sequence[float], half: Sequence[float], rgba: Sequence[float]
@@ -342,34 +347,14 @@ class PyBullet3D(Simulator):
 
     def _boxed_table(self, table: TableSpec, grey: Sequence[float], blue: Sequence[float]) -> None:
         """``patch_mode: boxes``: base slab, top layer cut around the patches, patch boxes."""
-        layer = min(0.01, table.height / 2.0)  # thickness of the top layer [m]
-        (cx, cy), (w, d) = table.center, table.size
-        base_h = table.height - layer
-        self._static_box(
-            (cx, cy, base_h / 2.0), (w / 2, d / 2, base_h / 2), table.friction,
-            table.restitution, grey,
-        )  # fmt: skip
-        bounds = (cx - w / 2, cx + w / 2, cy - d / 2, cy + d / 2)
-        holes = [pt.bounds() for pt in table.patches]
-        zc = table.height - layer / 2.0
-        for x0, x1, y0, y1 in grid_cells(bounds, holes):
-            self._static_box(
-                ((x0 + x1) / 2, (y0 + y1) / 2, zc), ((x1 - x0) / 2, (y1 - y0) / 2, layer / 2),
-                table.friction, table.restitution, grey,
-            )  # fmt: skip
-        for pt in table.patches:
-            x0, x1, y0, y1 = pt.bounds()
-            self._static_box(
-                ((x0 + x1) / 2, (y0 + y1) / 2, zc), ((x1 - x0) / 2, (y1 - y0) / 2, layer / 2),
-                pt.friction, table.restitution, blue,
-            )  # fmt: skip
+        for center, half, mu, is_patch in boxed_table_parts(table):
+            self._static_box(center, half, mu, table.restitution, blue if is_patch else grey)
 
     def _update_patch_friction(self) -> None:
         """``friction_map``: give the table the friction of the patch under the tool point."""
         if not self._patch_map:
             return
-        pos, _, _, _ = self._tip_state(velocity=False)
-        x, y = float(pos[0]), float(pos[1])
+        x, y = float(self._tip[0][0]), float(self._tip[0][1])
         mu = self.scene.table.friction if self.scene.table is not None else 0.0
         for x0, x1, y0, y1, pmu in self._patch_map:
             if x0 <= x <= x1 and y0 <= y <= y1:
@@ -400,12 +385,12 @@ class PyBullet3D(Simulator):
         dq = np.array([s[1] for s in states])
         return q, dq
 
-    def _tip_state(
-        self, velocity: bool = True
-    ) -> tuple[np.ndarray, tuple[float, ...], np.ndarray, np.ndarray]:
-        """Tool point position, orientation (x, y, z, w), linear and angular velocity."""
-        return tool_point_state(
-            self._p, self._client, self._robot, self._tool_link, self._tip_local, velocity
+    def _refresh_tip(self) -> None:
+        """Read the tool point state once per physics step into ``self._tip``: position,
+        orientation (x, y, z, w), linear and angular velocity. Every use within the step
+        (patch friction, orientation hold, truth, observation) shares it."""
+        self._tip = tool_point_state(
+            self._p, self._client, self._robot, self._tool_link, self._tip_local, True
         )
 
     def _jacobian(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -417,7 +402,7 @@ class PyBullet3D(Simulator):
         """τ = Jᵀ W + h(q, q̇) + N τ₀ (module docstring)."""
         p, cid, cfg = self._p, self._client, self.config
         q, dq = self._joint_state()
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq))):
+        if not all_finite(q, dq):
             raise SimulationDiverged(
                 f"non-finite joint state at t={self._steps * self.dt:.3f} s: q={q.tolist()}"
             )
@@ -425,7 +410,7 @@ class PyBullet3D(Simulator):
         h = inverse_dynamics(p, cid, self._robot, q, dq)
         w = wrench
         if cfg.orientation_stiffness > 0.0 or cfg.orientation_damping > 0.0:
-            _, orn, _, omega = self._tip_state()
+            _, orn, _, omega = self._tip
             hold = cfg.orientation_stiffness * orientation_error(self.start_orientation, orn)
             hold -= cfg.orientation_damping * omega
             w = wrench.copy()
@@ -453,14 +438,16 @@ class PyBullet3D(Simulator):
             self._p, self._client, self._robot, self._tool_link, self._tip_local, self._weight
         )
 
-    def _contacts(self) -> tuple[np.ndarray, np.ndarray, int, float]:
-        """Ground-truth contact force/torque (about the tool point), count and friction."""
+    def _contacts(self) -> tuple[np.ndarray, np.ndarray, int, float, np.ndarray]:
+        """Ground-truth contact force/torque (about the tool point), count, friction and
+        ``(table normal, box normal, box friction)`` [N] (:func:`contact_split`)."""
         p, cid = self._p, self._client
         pts = p.getContactPoints(bodyA=self._robot, linkIndexA=self._tool_link, physicsClientId=cid)
         if not pts:
-            return np.zeros(3), np.zeros(3), 0, -1.0
-        tip, _, _, _ = self._tip_state(velocity=False)
-        return contact_wrench(pts, tip, self._body_friction)
+            return np.zeros(3), np.zeros(3), 0, -1.0, np.zeros(3)
+        tip = self._tip[0]
+        split = np.array(contact_split(pts, self._box_bodies))
+        return (*contact_wrench(pts, tip, self._body_friction), split)
 
     def _output(
         self,
@@ -470,10 +457,12 @@ class PyBullet3D(Simulator):
         t_contact: np.ndarray,
         n: int,
         mu: float,
+        split: np.ndarray,
     ) -> tuple[Observation, StepInfo]:
-        """Observation (F/T path + sensor noise) and truth (contact forces)."""
-        pos, orn, lin, ang = self._tip_state()
-        if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(lin))):
+        """Observation (F/T path + sensor noise) and truth (contact forces; the same
+        ``extra`` keys at every step, as the recorder fixes its columns at the first)."""
+        pos, orn, lin, ang = self._tip
+        if not all_finite(pos, lin):
             raise SimulationDiverged(
                 f"non-finite tool state at t={self._steps * self.dt:.3f} s "
                 f"(position={pos.tolist()}, velocity={lin.tolist()})"
@@ -496,6 +485,9 @@ class PyBullet3D(Simulator):
             extra={
                 "surface_friction": mu if n > 0 else -1.0,
                 "contact": 1.0 if n > 0 else 0.0,
+                "table_normal_N": float(split[0]),  # normal force from the table [N]
+                "box_normal_N": float(split[1]),  # ... from scene.boxes (walls) [N]
+                "box_friction_N": float(split[2]),  # |friction force| from the boxes [N]
             },
         )
         return obs, info

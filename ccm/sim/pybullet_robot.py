@@ -266,7 +266,7 @@ def tool_jacobian(
         robot, tool_link, list(tip_local), q.tolist(), dq.tolist(), [0.0] * N_ARM,
         physicsClientId=cid,
     )  # fmt: skip
-    return np.vstack([np.asarray(lin), np.asarray(ang)])
+    return np.array((*lin, *ang))
 
 
 def set_joint_positions(p: Any, cid: int, robot: int, q: Sequence[float]) -> None:
@@ -339,12 +339,18 @@ def task_inertia(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(M⁻¹ Jᵀ, Λ)`` with the task-space inertia ``Λ = (J M⁻¹ Jᵀ)⁻¹``.
 
-    Λ uses the pseudo-inverse, so it stays finite near singular configurations.
+    J M⁻¹ Jᵀ is inverted directly; only if that fails (exactly singular) the pseudo-inverse is
+    used. (NumPy's pinv truncates singular values below 1e-15 relative only, so near a
+    singularity it gives the same huge Λ as the inverse: the tasks keep the arm away from
+    singular configurations.)
     """
-    mass = np.asarray(p.calculateMassMatrix(robot, q.tolist(), physicsClientId=cid))
-    minv_jt = np.linalg.solve(mass, jac.T)  # M⁻¹ Jᵀ
-    lam = np.linalg.pinv(jac @ minv_jt)  # Λ = (J M⁻¹ Jᵀ)⁻¹ (pinv: safe near singular)
-    return minv_jt, lam
+    mass = np.array(p.calculateMassMatrix(robot, q.tolist(), physicsClientId=cid))
+    minv_jt = np.linalg.inv(mass) @ jac.T  # M⁻¹ Jᵀ (M is 7x7 and positive definite)
+    a = jac @ minv_jt
+    try:
+        return minv_jt, np.linalg.inv(a)
+    except np.linalg.LinAlgError:
+        return minv_jt, np.linalg.pinv(a)
 
 
 def nullspace_projection(
@@ -381,7 +387,7 @@ def ft_external(
     # static balance about the centre of mass (the weight has no moment there), then
     # move the moment to the tool point p: M_p = M_c + (c - p) x F = M_c - r x F
     r = rot @ np.asarray(tip_local)
-    m_ext = -m_joint - np.cross(r, f_ext)
+    m_ext = -m_joint - cross3(r, f_ext)
     return f_ext, m_ext
 
 
@@ -395,18 +401,27 @@ def contact_wrench(
         tip: the tool point [m].
         body_friction: friction of each static body by body id.
     """
-    f = np.zeros(3)
-    m = np.zeros(3)
-    best, mu, n = -1.0, -1.0, 0
-    for c in pts:
-        fn = c[9]
+    fx = fy = fz = mx = my = mz = 0.0
+    tx, ty, tz = float(tip[0]), float(tip[1]), float(tip[2])
+    best, mu = -1.0, -1.0
+    for c in pts:  # plain floats: a handful of points, numpy's per-call cost would dominate
+        fn, l1, l2 = c[9], c[10], c[12]
+        nrm, d1, d2 = c[7], c[11], c[13]
         # PyBullet's lateral friction entries act on body B along the listed directions,
         # so the tool (body A) gets the opposite (checked against the F/T reading)
-        fc = fn * np.asarray(c[7]) - c[10] * np.asarray(c[11]) - c[12] * np.asarray(c[13])
-        f += fc
-        m += np.cross(np.asarray(c[5]) - tip, fc)
-        n += 1
+        cx = fn * nrm[0] - l1 * d1[0] - l2 * d2[0]
+        cy = fn * nrm[1] - l1 * d1[1] - l2 * d2[1]
+        cz = fn * nrm[2] - l1 * d1[2] - l2 * d2[2]
+        rx, ry, rz = c[5][0] - tx, c[5][1] - ty, c[5][2] - tz
+        fx, fy, fz = fx + cx, fy + cy, fz + cz
+        mx, my, mz = mx + ry * cz - rz * cy, my + rz * cx - rx * cz, mz + rx * cy - ry * cx
         if fn > best:
-            best = fn
-            mu = body_friction.get(c[2], -1.0)
-    return f, m, n, mu
+            best, mu = fn, body_friction.get(c[2], -1.0)
+    return np.array([fx, fy, fz]), np.array([mx, my, mz]), len(pts), mu
+
+
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` of two 3-vectors; np.cross costs ~50 µs a call (numpy 2)."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])

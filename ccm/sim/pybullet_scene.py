@@ -2,13 +2,16 @@
 
 The frozen dataclasses here parse and validate the ``sim`` config group (backend settings,
 the block tool) and ``task.scene`` (a table with friction patches, static boxes); every
-error names the offending key. Nothing here imports PyBullet.
+error names the offending key. Below them, plain helpers on that description: the boxes of
+the ``boxes`` patch mode and the split of the contact ground truth into table and box
+(wall) forces (``StepInfo.extra``: ``table_normal_N``, ``box_normal_N``,
+``box_friction_N``). Nothing here imports PyBullet.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Container, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,6 +33,7 @@ PANDA_READY = (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.
 _SIM_KEYS = (
     "name",
     "description",
+    "nominal_mass_kg",  # read by controllers (configs/controller/*.yaml), not the simulator
     "dt",
     "control_decimation",
     "gui",
@@ -335,3 +339,61 @@ def grid_cells(
             if not any(h[0] < mx < h[1] and h[2] < my < h[3] for h in holes):
                 cells.append((x0, x1, y0, y1))
     return cells
+
+
+def boxed_table_parts(
+    table: TableSpec,
+) -> list[tuple[tuple[float, float, float], tuple[float, float, float], float, bool]]:
+    """``patch_mode: boxes``: the static boxes that make up the table, in creation order.
+
+    A base slab, the top layer (1 cm, or half the height if less) cut around the patches
+    into the cells of :func:`grid_cells`, then one box per patch flush with the top.
+
+    Returns:
+        ``(center, half_extents, friction, is_patch)`` per box [m].
+    """
+    layer = min(0.01, table.height / 2.0)  # thickness of the top layer [m]
+    (cx, cy), (w, d) = table.center, table.size
+    base_h = table.height - layer
+    parts = [((cx, cy, base_h / 2.0), (w / 2, d / 2, base_h / 2), table.friction, False)]
+    bounds = (cx - w / 2, cx + w / 2, cy - d / 2, cy + d / 2)
+    zc = table.height - layer / 2.0
+
+    def cell(x0: float, x1: float, y0: float, y1: float) -> tuple[Any, Any]:
+        return ((x0 + x1) / 2, (y0 + y1) / 2, zc), ((x1 - x0) / 2, (y1 - y0) / 2, layer / 2)
+
+    holes = [pt.bounds() for pt in table.patches]
+    for c in grid_cells(bounds, holes):
+        parts.append((*cell(*c), table.friction, False))
+    for pt in table.patches:
+        parts.append((*cell(*pt.bounds()), pt.friction, True))
+    return parts
+
+
+def contact_split(
+    pts: Sequence[Sequence[Any]], box_bodies: Container[int]
+) -> tuple[float, float, float]:
+    """Contact ground truth by kind of body: ``(table normal, box normal, box friction)`` [N].
+
+    Args:
+        pts: PyBullet ``getContactPoints`` entries of the tool (body A): the other body's id
+            is entry 2, the normal force entry 9, the two lateral friction forces entries
+            10/12 along the directions 11/13 (acting on body B, so the tool gets minus them).
+        box_bodies: body ids of ``scene.boxes`` (walls, obstacles); every other static body
+            belongs to the table (patch boxes included).
+
+    Returns:
+        Normal forces summed over points, and the magnitude of the summed friction force
+        the boxes exert on the tool.
+    """
+    table_n = box_n = fx = fy = fz = 0.0
+    for c in pts:
+        if c[2] in box_bodies:
+            box_n += c[9]
+            (ax, ay, az), (bx, by, bz) = c[11], c[13]
+            fx -= c[10] * ax + c[12] * bx
+            fy -= c[10] * ay + c[12] * by
+            fz -= c[10] * az + c[12] * bz
+        else:
+            table_n += c[9]
+    return table_n, box_n, math.sqrt(fx * fx + fy * fy + fz * fz)

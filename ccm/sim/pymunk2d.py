@@ -49,6 +49,7 @@ from ccm.types import Command, Observation, StepInfo
 _SIM_KEYS = (
     "name",
     "description",
+    "nominal_mass_kg",  # read by controllers (configs/controller/*.yaml), not the simulator
     "dt",
     "control_decimation",
     "iterations",
