@@ -76,6 +76,13 @@ def check_int_positive(key: str, value: Any) -> int:
     return int(value)
 
 
+def check_int_nonneg(key: str, value: Any) -> int:
+    """Return ``value`` as an int >= 0."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+        raise ConfigError(key, f"must be an integer >= 0, got {value!r}")
+    return int(value)
+
+
 def check_choice(key: str, value: Any, allowed: Iterable[str]) -> str:
     """Return ``value`` if it is one of ``allowed``."""
     options = list(allowed)

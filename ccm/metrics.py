@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from ccm.errors import check_positive
+from ccm.filters import first_order_alpha
+from ccm.mode_metrics import mode_metrics
 
 #: metrics every trial reports (issue #2)
 BASE_METRICS = (
@@ -28,7 +29,7 @@ def lowpass(x: np.ndarray, dt: float, cutoff_hz: float) -> np.ndarray:
     α = dt / (dt + 1/(2π f_c)). One documented filter, used for every condition, stands in for
     the velocity filtering a robot applies to encoder-derived velocities.
     """
-    alpha = dt / (dt + 1.0 / (2.0 * math.pi * cutoff_hz))
+    alpha = first_order_alpha(dt, cutoff_hz)
     y = np.empty_like(x, dtype=float)
     if len(x) == 0:
         return y
@@ -182,6 +183,7 @@ def lag_metrics(
 EXTRA_METRICS = {
     "force_prediction": force_prediction_metrics,
     "lag": lag_metrics,
+    "modes": mode_metrics,
 }
 
 

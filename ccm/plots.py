@@ -26,7 +26,8 @@ def write_figures(
     """Write PNGs comparing the last trial of every condition; return their paths.
 
     Besides the five standard figures, ``error_vs_trial.png`` appears when a condition has
-    several trials and ``force_prediction.png`` when a controller logs ``pred_force_N``.
+    several trials, ``force_prediction.png`` when a controller logs ``pred_force_N``, and
+    ``modes.png`` / ``mode_stiffness_error.png`` when it logs ``mode`` (:mod:`ccm.plots_modes`).
     """
     import matplotlib
 
@@ -192,4 +193,9 @@ def write_figures(
         axs[-1, 0].set_xlabel("time [s]")
         fig.suptitle("One-step force prediction (last trial)")
         save(fig, "force_prediction.png")
+
+    # 8. contact modes with confidences; stiffness and error around transitions (seed A Figs 9-10)
+    from ccm.plots_modes import write_mode_figures
+
+    write_mode_figures(logs, dim, trials, save)
     return written

@@ -80,7 +80,10 @@ def test_same_seed_gives_identical_summary(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("override", "expected"),
     [
-        ("controller=nope", "controller=nope: unknown option; allowed: aic, avic, bac,"),
+        (
+            "controller=nope",
+            "controller=nope: unknown option; allowed: aic, avic, avic_modes, bac,",
+        ),
         ("controller.stiffness=-5", "controller.stiffness: must be > 0"),
         ("sim.dt=0", "sim.dt: must be > 0"),
         ("task=nope", "task=nope: unknown option; allowed:"),

@@ -140,20 +140,22 @@ class AVIC(FixedImpedance):
         """Eq. 4a–4c: learn from the newest sample, adapt λ and K_p, add the feed-forward."""
         s = magnitudes(obs.lin_vel, obs.ang_vel, obs.force, obs.torque)
         d = s[2:N_STATE]
+        self.before_step(obs, target, s)
         pred_now = math.nan if self._pred is None else float(self._pred[0])
         err = math.nan
         if self._s_prev is not None:
             if self._pred is not None and self.model.ready:
                 err = math.hypot(d[0] - self._pred[0], d[1] - self._pred[1])
                 self._lam = self.logistic(err)
-            self.model.update(self._s_prev, d)
-        lam = self._lam if self.adaptive else 0.0
-        kp = self.stiffness_for(lam) if self.adaptive else self.k_max
+            self.learn(self._s_prev, d)
+        stiff = not self.adaptive or self.hold_k_max()
+        lam = 0.0 if stiff else self._lam
+        kp = self.k_max if stiff else self.stiffness_for(lam)
         kd = self.damping_for(kp)
         u_motion, u_force = self.motion_force(obs, target, kp, kd)
         self._pred = self.model.predict(s) if self.model.ready else None
         u = u_motion + u_force
-        if self.feedforward and self.adaptive and self._pred is not None and lam > 0.0:
+        if self.feedforward and self._pred is not None and lam > 0.0:
             w = self.predicted_wrench(float(self._pred[0]), obs)
             if target.force_dir is not None:
                 w = w - target.force_dir * float(target.force_dir @ w)
@@ -162,6 +164,19 @@ class AVIC(FixedImpedance):
         self._signals.update(self._avic_signals(pred_now, err, kp))
         self._signals["damping_Nspm"] = kd
         return Command(force=u, torque=self.rotation_torque(obs, target))
+
+    # Hooks for Algorithm 1 (seed A §3.2), used by ccm.control.modal; plain AVIC learns every
+    # step with one model and never forces K_max.
+    def before_step(self, obs: Observation, target: TargetSample, s: np.ndarray) -> None:
+        """Called first in every step with the state magnitudes S_t (may swap ``self.model``)."""
+
+    def learn(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
+        """Revise the forward model with X_t = [S_{t−1}, D_t] (Eq. 5)."""
+        self.model.update(s_prev, d_now)
+
+    def hold_k_max(self) -> bool:
+        """Whether this step must use K_max regardless of λ (Algorithm 1, line 3)."""
+        return False
 
     def predicted_wrench(self, f_mag: float, obs: Observation) -> np.ndarray:
         """Ŵ: the predicted external force as a vector (see ``ff_direction``)."""

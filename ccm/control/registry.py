@@ -10,6 +10,7 @@ from ccm.control.avic import AVIC
 from ccm.control.bac import BAC
 from ccm.control.base import Controller
 from ccm.control.impedance import FixedImpedance
+from ccm.control.modal import ModalAVIC
 from ccm.control.mrac import MRAC
 from ccm.errors import check_choice
 
@@ -19,6 +20,7 @@ CONTROLLERS: dict[str, type[Controller]] = {
     "aic": AIC,
     "bac": BAC,
     "avic": AVIC,
+    "avic_modes": ModalAVIC,
 }
 
 

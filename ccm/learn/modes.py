@@ -31,18 +31,13 @@ from ccm.errors import (
     ConfigError,
     check_choice,
     check_finite,
+    check_int_nonneg,
     check_int_positive,
     check_nonneg,
     check_positive,
 )
 
 FEATURE_KINDS: tuple[str, ...] = ("force_ratio", "torque_force_ratio")
-
-
-def _check_int_nonneg(key: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
-        raise ConfigError(key, f"must be an integer >= 0, got {value!r}")
-    return int(value)
 
 
 class TransitionTrigger:
@@ -82,7 +77,7 @@ class TransitionTrigger:
         self.refractory_steps = (
             self.window
             if refractory_steps is None
-            else _check_int_nonneg(f"{key}.refractory_steps", refractory_steps)
+            else check_int_nonneg(f"{key}.refractory_steps", refractory_steps)
         )
         self.reset()
 
@@ -174,14 +169,22 @@ def mode_features(
     f = _vector(f"{key}.force", force)
     r = abs(check_finite(f"{key}.normal_force", normal_force))
     eps = check_nonneg(f"{key}.min_normal_force", min_normal_force)
-    if kind == "force_ratio":
-        if r < eps or r == 0.0:
-            return np.full(1, np.nan)
-        return np.array([np.linalg.norm(f) / r])
-    tau = _vector(f"{key}.torque", torque)
     if r < eps or r == 0.0:
-        return np.full(2, np.nan)
-    return np.array([np.linalg.norm(tau) / r, np.linalg.norm(f) / r])
+        return np.full(1 if kind == "force_ratio" else 2, np.nan)
+    if kind == "force_ratio":
+        return feature_vector(float(np.linalg.norm(f)), 0.0, r, kind)
+    tau = _vector(f"{key}.torque", torque)
+    return feature_vector(float(np.linalg.norm(f)), float(np.linalg.norm(tau)), r, kind)
+
+
+def feature_vector(
+    force_norm: float, torque_norm: float, normal_force: float, kind: str
+) -> np.ndarray:
+    """The arithmetic of :func:`mode_features` without validation, for a control loop that has
+    checked its inputs: ``[‖F‖/R]`` (Eq. 7) or ``[‖τ‖/R, ‖F‖/R]``, with ``R > 0``."""
+    if kind == "force_ratio":
+        return np.array([force_norm / normal_force])
+    return np.array([torque_norm / normal_force, force_norm / normal_force])
 
 
 @dataclass(frozen=True)
