@@ -54,16 +54,19 @@ from ccm.sim.pybullet_robot import (
     DOWN,
     GRAVITY,
     N_ARM,
+    box_inertia,
     contact_wrench,
     ft_external,
     inverse_dynamics,
     load_robot,
     nullspace_projection,
     orientation_error,
+    quat_to_matrix,
     set_joint_positions,
     start_ik,
     task_inertia,
     tool_jacobian,
+    tool_momentum_rate,
     tool_point_state,
 )
 from ccm.sim.pybullet_scene import (
@@ -82,20 +85,9 @@ from ccm.sim.sensor import FTSensor
 from ccm.types import Command, Observation, StepInfo
 
 __all__ = [
-    "DOWN",
-    "GRAVITY",
-    "N_ARM",
-    "PANDA_READY",
-    "PATCH_MODES",
-    "Box3DSpec",
-    "PyBullet3D",
-    "PyBullet3DConfig",
-    "Scene3D",
-    "TablePatch",
-    "TableSpec",
-    "ToolSpec",
-    "orientation_error",
-]
+    "DOWN", "GRAVITY", "N_ARM", "PANDA_READY", "PATCH_MODES", "Box3DSpec", "PyBullet3D",
+    "PyBullet3DConfig", "Scene3D", "TablePatch", "TableSpec", "ToolSpec", "orientation_error",
+]  # fmt: skip
 
 
 # --------------------------------------------------------------------------- simulator
@@ -138,6 +130,8 @@ class PyBullet3D(Simulator):
         #: tool point in the tool's centre-of-mass frame (bottom face centre)
         self._tip_local = (0.0, 0.0, tool.size[2] / 2.0)
         self._weight = np.array([0.0, 0.0, -tool.mass * GRAVITY])
+        self._tool_inertia = np.diag(box_inertia(tool.mass, tool.size))  # tool frame [kg m²]
+        self._twist_prev: tuple[np.ndarray, np.ndarray] | None = None
         self._client: int | None = None
         self._p: Any = None
         self._robot = -1
@@ -198,6 +192,7 @@ class PyBullet3D(Simulator):
         self._build_scene()
         self._robot, self._tool_link = load_robot(p, cid, self.config)
         self._place_at_start()
+        self._twist_prev = None
         self._refresh_tip()
         self._rng = np.random.default_rng(seed)
         self.sensor.reset(self._rng)
@@ -389,9 +384,16 @@ class PyBullet3D(Simulator):
         """Read the tool point state once per physics step into ``self._tip``: position,
         orientation (x, y, z, w), linear and angular velocity. Every use within the step
         (patch friction, orientation hold, truth, observation) shares it."""
-        self._tip = tool_point_state(
+        *tip, v_com = tool_point_state(
             self._p, self._client, self._robot, self._tool_link, self._tip_local, True
         )
+        self._tip = tuple(tip)
+        self._rot = quat_to_matrix(tip[1])
+        twist = (v_com, tip[3])
+        self._inertial = tool_momentum_rate(
+            self.config.tool.mass, self._tool_inertia, self._rot, twist, self._twist_prev, self.dt
+        )
+        self._twist_prev = twist
 
     def _jacobian(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         return tool_jacobian(
@@ -435,8 +437,9 @@ class PyBullet3D(Simulator):
     def _ft_external(self) -> tuple[np.ndarray, np.ndarray]:
         """External wrench on the tool at the tool point from the joint F/T sensor."""
         return ft_external(
-            self._p, self._client, self._robot, self._tool_link, self._tip_local, self._weight
-        )
+            self._p, self._client, self._robot, self._tool_link, self._rot, self._tip_local,
+            self._weight, *self._inertial,
+        )  # fmt: skip
 
     def _contacts(self) -> tuple[np.ndarray, np.ndarray, int, float, np.ndarray]:
         """Ground-truth contact force/torque (about the tool point), count, friction and

@@ -30,13 +30,15 @@ Modelling choices (the torque loop and the table patches are described in
   rotated to the world frame, the tool's weight is removed and the result is expressed as
   the external wrench *on* the tool at the tool point ``p``::
 
-      F_ext = −R F_joint − m_tool g
-      M_ext = −R M_joint + (c − p) × F_ext
+      F_ext = m_tool a_c − R F_joint − m_tool g
+      M_ext = (I α + ω × I ω) − R M_joint + (c − p) × F_ext
 
-  Only the static part is compensated: the tool's inertial wrench (``m_tool a_c`` and
-  ``I α + ω × I ω``) stays in the reading. It is ``m_tool |a|``, i.e. 0.15 N per m/s² for
-  the default 0.15 kg tool. Then :class:`ccm.sim.sensor.FTSensor` adds bias and noise. With
-  ``control_decimation > 1`` the reading is the mean over the control period's physics steps.
+  (Newton–Euler for the tool: what the hand and the world exert on it equals its rate of
+  momentum.) The tool's acceleration a_c and angular acceleration α are backward differences
+  of its centre-of-mass twist over one physics step, as a robot would differentiate its
+  kinematics; I is the tool's inertia in the world frame. Then
+  :class:`ccm.sim.sensor.FTSensor` adds bias and noise. With ``control_decimation > 1`` the
+  reading is the mean over the control period's physics steps.
 * **Ground truth.** ``getContactPoints`` on the tool link: normal force (entry 9) along the
   normal on B (entry 7, pointing from the other body to the tool) minus the two lateral
   friction forces (entries 10/12 along 11/13: PyBullet reports them as acting on body B,
@@ -94,7 +96,7 @@ def _quat_rotate(q: Sequence[float], v: Sequence[float]) -> tuple[float, float, 
     )
 
 
-def _quat_to_matrix(q: Sequence[float]) -> np.ndarray:
+def quat_to_matrix(q: Sequence[float]) -> np.ndarray:
     x, y, z, w = q
     return np.array(
         [
@@ -147,8 +149,7 @@ def robot_urdf(tool: ToolSpec, directory: str) -> str:
             mesh.set("filename", os.path.join(src_dir, fn[len("package://") :]))
     sx, sy, sz = tool.size
     m = tool.mass
-    ixx, iyy, izz = (m * (sy**2 + sz**2) / 12, m * (sx**2 + sz**2) / 12,
-                     m * (sx**2 + sy**2) / 12)  # fmt: skip
+    ixx, iyy, izz = box_inertia(m, tool.size)
     box = f'<geometry><box size="{sx} {sy} {sz}"/></geometry>'
     origin = f'<origin rpy="0 0 0" xyz="0 0 {sz / 2}"/>'
     root.append(
@@ -227,8 +228,9 @@ def tool_point_state(
     tool_link: int,
     tip_local: Sequence[float],
     velocity: bool = True,
-) -> tuple[np.ndarray, tuple[float, ...], np.ndarray, np.ndarray]:
-    """Tool point position, orientation (x, y, z, w), linear and angular velocity.
+) -> tuple[np.ndarray, tuple[float, ...], np.ndarray, np.ndarray, np.ndarray]:
+    """Tool point position, orientation (x, y, z, w), linear and angular velocity, and the
+    linear velocity of the tool's centre of mass.
 
     ``tip_local`` is the tool point in the tool's centre-of-mass (Bullet link) frame.
     """
@@ -240,7 +242,7 @@ def tool_point_state(
     r = _quat_rotate(orn, tip_local)
     pos = np.array([com[0] + r[0], com[1] + r[1], com[2] + r[2]])
     if not velocity:
-        return pos, orn, np.zeros(3), np.zeros(3)
+        return pos, orn, np.zeros(3), np.zeros(3), np.zeros(3)
     v, w = ls[6], ls[7]
     lin = np.array(
         [
@@ -249,7 +251,7 @@ def tool_point_state(
             v[2] + w[0] * r[1] - w[1] * r[0],
         ]
     )
-    return pos, orn, lin, np.array(w)
+    return pos, orn, lin, np.array(w), np.array(v)
 
 
 def tool_jacobian(
@@ -297,7 +299,7 @@ def start_ik(
     lam2 = 1e-4
     for _ in range(300):
         set_joint_positions(p, cid, robot, q)
-        pos, orn, _, _ = tool_point_state(p, cid, robot, tool_link, tip_local, velocity=False)
+        pos, orn, _, _, _ = tool_point_state(p, cid, robot, tool_link, tip_local, velocity=False)
         e = np.concatenate([position - pos, orientation_error(orientation, orn)])
         if float(np.max(np.abs(e))) < 1e-7:
             break
@@ -364,30 +366,58 @@ def nullspace_projection(
 # --------------------------------------------------------------------------- sensing
 
 
+def box_inertia(mass: float, size: Sequence[float]) -> tuple[float, float, float]:
+    """Principal moments of inertia [kg m²] of a solid box about its centre."""
+    sx, sy, sz = size
+    return (mass * (sy**2 + sz**2) / 12, mass * (sx**2 + sz**2) / 12, mass * (sx**2 + sy**2) / 12)
+
+
+def tool_momentum_rate(
+    mass: float,
+    inertia_body: np.ndarray,
+    rot: np.ndarray,
+    twist: tuple[np.ndarray, np.ndarray],
+    twist_prev: tuple[np.ndarray, np.ndarray] | None,
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(m a_c, I α + ω × I ω)`` of the tool in the world frame (Newton–Euler), with a_c and α
+    backward differences of its centre-of-mass twist ``(v_c, ω)`` over ``dt``; zero when
+    there is no previous twist (the arm was just placed at rest)."""
+    v, omega = twist
+    if twist_prev is None:
+        acc = alpha = np.zeros(3)
+    else:
+        acc = (v - twist_prev[0]) / dt
+        alpha = (omega - twist_prev[1]) / dt
+    inertia = rot @ inertia_body @ rot.T
+    return mass * acc, inertia @ alpha + cross3(omega, inertia @ omega)
+
+
 def ft_external(
     p: Any,
     cid: int,
     robot: int,
     tool_link: int,
+    rot: np.ndarray,
     tip_local: Sequence[float],
     weight: np.ndarray,
+    inertial_force: np.ndarray,
+    inertial_moment: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """External wrench on the tool at the tool point from the joint F/T sensor.
-
-    ``weight`` is the tool's weight vector ``m_tool g`` [N] in the world frame.
-    """
+    """External wrench on the tool at the tool point from the joint F/T sensor (module
+    docstring): ``rot`` is the tool's orientation matrix, ``weight`` its weight ``m_tool g`` [N],
+    ``inertial_force`` ``m_tool a_c`` [N] and ``inertial_moment`` ``I α + ω × I ω`` [N m],
+    all in the world frame."""
     reading = p.getJointState(robot, tool_link, physicsClientId=cid)[2]
-    ls = p.getLinkState(robot, tool_link, computeForwardKinematics=1, physicsClientId=cid)
-    rot = _quat_to_matrix(ls[1])
-    # force exerted by the hand on the tool and its moment about the tool's centre of
-    # mass (Bullet's link frame is the inertial frame), rotated to the world frame
+    # force exerted by the hand on the tool and its moment about the tool's centre of mass
+    # (Bullet's link frame is the inertial frame), rotated to the world frame
     f_joint = rot @ np.asarray(reading[:3])
     m_joint = rot @ np.asarray(reading[3:])
-    f_ext = -f_joint - weight
-    # static balance about the centre of mass (the weight has no moment there), then
-    # move the moment to the tool point p: M_p = M_c + (c - p) x F = M_c - r x F
+    f_ext = inertial_force - f_joint - weight
+    # balance about the centre of mass (the weight has no moment there), then move the
+    # moment to the tool point p: M_p = M_c + (c - p) x F = M_c - r x F
     r = rot @ np.asarray(tip_local)
-    m_ext = -m_joint - cross3(r, f_ext)
+    m_ext = inertial_moment - m_joint - cross3(r, f_ext)
     return f_ext, m_ext
 
 
