@@ -16,10 +16,10 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from ccm.errors import ConfigError, check_vector
-from ccm.tasks.trajectory import MotionPattern, build_pattern
+from ccm.errors import ConfigError, check_choice, check_vector
+from ccm.tasks.trajectory import MotionPattern, _check_keys, build_pattern
 
-__all__ = ["TASK_KEYS", "Task", "load_task"]
+__all__ = ["CONTACT_KINDS", "TASK_KEYS", "Task", "load_task"]
 
 #: Top-level keys a task mapping may hold.
 TASK_KEYS: tuple[str, ...] = (
@@ -31,8 +31,12 @@ TASK_KEYS: tuple[str, ...] = (
     "scene",
     "pattern",
     "params",
+    "contacts",
 )
 _REQUIRED = ("name", "dim", "start", "scene", "pattern")
+#: Kinds of expected contact (seed A §3.3): a collision, or a change of surface without impact.
+CONTACT_KINDS: tuple[str, ...] = ("collision", "impactless")
+_CONTACT_KEYS = ("name", "position", "kind")
 
 
 @dataclass
@@ -48,6 +52,12 @@ class Task:
         description: one-line human description.
         params: task-specific extras that are not part of the scene or pattern (e.g. the
             viscosity ramps of seed A §4.1), passed through unvalidated.
+        contacts: the *expected* contacts of the pattern, in the order it meets them: plain
+            dicts ``{"name": str, "position": tuple of dim floats [m], "kind": "collision" |
+            "impactless"}``. They stand in for a vision system's estimates (seed A §3.3,
+            Table 1): nominal positions a controller may use (noise is added elsewhere, from a
+            seeded generator), never ground truth, which stays in the scene. The mapping form
+            is what :meth:`ccm.learn.contacts.ContactMap.from_config` takes.
     """
 
     name: str
@@ -57,6 +67,7 @@ class Task:
     pattern: MotionPattern
     description: str = ""
     params: dict[str, Any] = field(default_factory=dict)
+    contacts: tuple[dict[str, Any], ...] = ()
 
     @property
     def duration(self) -> float:
@@ -77,6 +88,40 @@ def _to_dict(key: str, cfg: Any) -> dict[str, Any]:
     return dict(cfg)
 
 
+def _required_and_name(key: str, cfg: Mapping[str, Any], required: tuple[str, ...]) -> str:
+    """Check that every ``required`` key of ``cfg`` is set; return its non-empty ``name``."""
+    for req in required:
+        if cfg.get(req) is None:
+            raise ConfigError(f"{key}.{req}", "missing (required)")
+    name = cfg["name"]
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"{key}.name", f"must be a non-empty string, got {name!r}")
+    return name
+
+
+def _load_contacts(key: str, value: Any, dim: int) -> tuple[dict[str, Any], ...]:
+    """Validate the optional ``contacts`` list (see :class:`Task`); errors name the entry."""
+    if value is None:
+        return ()
+    if isinstance(value, str | bytes | Mapping) or not isinstance(value, list | tuple):
+        raise ConfigError(key, f"must be a list of {{{', '.join(_CONTACT_KEYS)}}}, got {value!r}")
+    out: list[dict[str, Any]] = []
+    seen: set[str] = set()
+    for i, entry in enumerate(value):
+        k = f"{key}[{i}]"
+        if not isinstance(entry, Mapping):
+            raise ConfigError(k, f"must be a mapping with keys {', '.join(_CONTACT_KEYS)}")
+        _check_keys(k, entry, _CONTACT_KEYS)
+        name = _required_and_name(k, entry, _CONTACT_KEYS)
+        if name in seen:
+            raise ConfigError(f"{k}.name", f"duplicate contact name {name!r}")
+        seen.add(name)
+        position = check_vector(f"{k}.position", entry["position"], dim)
+        kind = check_choice(f"{k}.kind", entry["kind"], CONTACT_KINDS)
+        out.append({"name": name, "position": tuple(float(v) for v in position), "kind": kind})
+    return tuple(out)
+
+
 def load_task(
     task_cfg: Mapping[str, Any] | DictConfig, control_dt: float, key: str = "task"
 ) -> Task:
@@ -85,7 +130,8 @@ def load_task(
     Args:
         task_cfg: dict or OmegaConf ``DictConfig`` with keys ``name``, ``description``,
             ``dim`` (2 or 3), ``start``, ``orientation`` (default ``[0.0]`` in 2D; a quaternion
-            x, y, z, w is required in 3D), ``scene``, ``pattern`` and optional ``params``.
+            x, y, z, w is required in 3D), ``scene``, ``pattern`` and optional ``params`` and
+            ``contacts`` (see :class:`Task`).
             Interpolations are resolved.
         control_dt: control period [s], used for pattern segments given in ``steps``.
         key: configuration key of ``task_cfg`` for error messages.
@@ -100,13 +146,7 @@ def load_task(
             key,
             f"unknown key(s) {', '.join(map(repr, unknown))}; allowed: {', '.join(TASK_KEYS)}",
         )
-    for name in _REQUIRED:
-        if cfg.get(name) is None:
-            raise ConfigError(f"{key}.{name}", "missing (required)")
-
-    name = cfg["name"]
-    if not isinstance(name, str) or not name:
-        raise ConfigError(f"{key}.name", f"must be a non-empty string, got {name!r}")
+    name = _required_and_name(key, cfg, _REQUIRED)
     description = cfg.get("description") or ""
     if not isinstance(description, str):
         raise ConfigError(f"{key}.description", f"must be a string, got {description!r}")
@@ -121,6 +161,7 @@ def load_task(
     params = cfg.get("params") or {}
     if not isinstance(params, Mapping):
         raise ConfigError(f"{key}.params", f"must be a mapping, got {type(params).__name__}")
+    contacts = _load_contacts(f"{key}.contacts", cfg.get("contacts"), dim)
     orientation = cfg.get("orientation")
     if orientation is not None:
         check_vector(f"{key}.orientation", orientation, 1 if dim == 2 else 4)
@@ -136,4 +177,5 @@ def load_task(
         pattern=pattern,
         description=description,
         params=dict(params),
+        contacts=contacts,
     )
