@@ -191,13 +191,16 @@ def run_trial(
     """Run one trial: sample P, control, step the simulator, record. Raises on divergence."""
     obs, info = comp.sim.reset(seed=seed)
     comp.controller.reset(comp.task.dim, comp.sim.control_dt)
+    planned = comp.task.pattern
+    pattern = comp.controller.prepare(planned, comp.task.contacts, np.random.default_rng(seed))
+    duration_s += pattern.duration - planned.duration  # a re-timed pattern may take longer
     n_steps = max(1, int(math.floor(duration_s / comp.sim.control_dt + 1e-9)))
     # The loop allocates many small acyclic objects that the recorder keeps; the cyclic
     # garbage collector would rescan them ever more often, so it is paused for the trial.
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
-        return _closed_loop(comp, obs, info, n_steps, progress)
+        return _closed_loop(comp, pattern, obs, info, n_steps, progress)
     finally:
         if gc_was_enabled:
             gc.enable()
@@ -205,13 +208,14 @@ def run_trial(
 
 def _closed_loop(
     comp: Components,
+    pattern: Any,
     obs: Observation,
     info: StepInfo,
     n_steps: int,
     progress: Callable[[int], None] | None,
 ) -> TrialRecorder:
     """The per-step loop of :func:`run_trial`."""
-    sim, pattern, ctrl = comp.sim, comp.task.pattern, comp.controller
+    sim, ctrl = comp.sim, comp.controller
     max_speed = float(getattr(sim, "max_speed", math.inf))
     tick = max(1, n_steps // 100)
     rec = TrialRecorder(comp.task.dim, list(ctrl.signals()), sorted(info.extra))

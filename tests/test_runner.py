@@ -71,3 +71,30 @@ def test_bad_phase_or_metric_specs(composer, override: str, key: str) -> None:
             cfg, lambda extra: composer([*overrides, *extra]), check_experiment(cfg)["trials"]
         )
     assert err.value.key == key
+
+
+def test_controller_prepare_sets_the_pattern_the_trial_follows(composer) -> None:
+    """``Controller.prepare`` may return a re-timed pattern (seed A §3.5.2): the runner samples
+    it and lengthens the trial by the extra wall time; the default follows P as planned."""
+    from ccm.control.impedance import FixedImpedance
+    from ccm.runner import build_components, run_trial
+    from ccm.tasks.retiming import RetimedPattern, TimeWarp
+
+    class HalfSpeed(FixedImpedance):
+        def prepare(self, pattern, contacts, rng):  # type: ignore[no-untyped-def]
+            self.seen = (pattern, contacts)
+            return RetimedPattern(pattern, TimeWarp(rate0=0.5))
+
+    comp = build_components(composer(["task=smoke"]))
+    planned = comp.task.pattern
+    n_plain = len(run_trial(comp, seed=0, duration_s=planned.duration))
+    slow = HalfSpeed(stiffness=300.0)
+    comp_slow = type(comp)(sim=comp.sim, task=comp.task, controller=slow)
+    rec = run_trial(comp_slow, seed=0, duration_s=planned.duration)
+    assert slow.seen == (planned, comp.task.contacts)
+    assert len(rec) == 2 * n_plain  # twice the wall time at half the rate (±0 steps)
+    tgt = rec.arrays()
+    mid = len(rec) // 2  # wall time T/2 at rate 0.5 is pattern time T/4
+    expected = planned.sample(tgt["t"][mid] * 0.5).position
+    assert abs(tgt["target_pos_x"][mid] - expected[0]) < 1e-12
+    assert abs(tgt["target_pos_y"][mid] - expected[1]) < 1e-12

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, Self
+
+import numpy as np
 
 from ccm.errors import constructor_kwargs
 from ccm.types import Command, Observation, TargetSample
@@ -39,6 +41,19 @@ class Controller(ABC):
 
         Keys carry units (``stiffness_Npm``); the set of keys is fixed for a controller.
         """
+
+    def prepare(
+        self, pattern: Any, contacts: Sequence[Mapping[str, Any]], rng: np.random.Generator
+    ) -> Any:
+        """Called at the start of each trial, after :meth:`reset`, with the planned target
+        pattern P, the task's *expected* contacts (nominal positions, standing in for a
+        vision system; never the scene) and a seeded generator for estimate noise.
+
+        Returns the pattern the runner samples this trial (it must offer ``sample(t)`` and
+        ``duration`` in wall time). The default follows P as planned; a controller that
+        anticipates contacts returns a re-timed P (seed A §3.5.2).
+        """
+        return pattern
 
     def end_trial(self) -> None:  # noqa: B027 - optional hook
         """Called after each trial; learning controllers update cross-trial state here."""
