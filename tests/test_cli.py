@@ -82,7 +82,7 @@ def test_same_seed_gives_identical_summary(tmp_path: Path) -> None:
     [
         (
             "controller=nope",
-            "controller=nope: unknown option; allowed: aic, avic, avic_modes, bac,",
+            "controller=nope: unknown option; allowed: aic, avic,",
         ),
         ("controller.stiffness=-5", "controller.stiffness: must be > 0"),
         ("sim.dt=0", "sim.dt: must be > 0"),

@@ -167,6 +167,25 @@ def fixed_map(**kwargs: object) -> ContactMap:
     return ContactMap.from_config([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], wall], rng, **kwargs)
 
 
+def test_expected_contact_wins_over_the_nearest_within_its_gate() -> None:
+    """The anticipated contact (its region C was active) takes the event if within its gate,
+    even when another belief is nearer; outside its gate, nearest-neighbour applies."""
+
+    def wide() -> ContactMap:  # two collisions 0.5 m apart, std 0.2 m (innovation ~0.2 m)
+        rng = np.random.default_rng(0)
+        return ContactMap.from_config([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0]], rng,
+                                      init_noise_std=0.0, init_std=0.2)  # fmt: skip
+
+    z = [0.3, 0.0, 0.0]  # ~1.0 sigma from contact 1, ~1.5 sigma from contact 0
+    assert wide().associate(z) == 1
+    ev = wide().observe(z, expected=0)
+    assert (ev.index, ev.is_new) == (0, False)
+    far = [0.9, 0.0, 0.0]  # ~4.4 sigma from contact 0 (outside the gate 3), ~2 from contact 1
+    assert wide().observe(far, expected=0).index == 1
+    with pytest.raises(ConfigError, match="controller.contacts.expected"):
+        wide().observe(z, expected=9)
+
+
 def test_association_gates_near_updates_far_creates() -> None:
     m = fixed_map()
     # Innovation std per axis: sqrt(0.02^2 + 0.005^2) = 0.0206; gate 3 -> 0.0618 on one axis.

@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ccm.control.aic import AIC
+from ccm.control.anticipation import AnticipatoryAVIC
 from ccm.control.avic import AVIC
 from ccm.control.bac import BAC
 from ccm.control.base import Controller
@@ -21,6 +22,7 @@ CONTROLLERS: dict[str, type[Controller]] = {
     "bac": BAC,
     "avic": AVIC,
     "avic_modes": ModalAVIC,
+    "avic_anticipation": AnticipatoryAVIC,
 }
 
 

@@ -338,14 +338,25 @@ class ContactMap:
         *,
         v_used: float | None = None,
         f_measured: float | None = None,
+        expected: int | None = None,
     ) -> ContactEvent:
         """A contact detected at end-effector position ``z``: associate and update, or create.
 
         ``v_used`` and ``f_measured`` (speed and impact force of a collision), given together,
         also update that contact's :class:`ApproachVelocityModel`, unless the event is a
         repeat within the trial (``updated`` False): a bounce is no new Eq. 9 measurement.
+        ``expected``: the contact the robot was anticipating when the event came (it was in
+        that contact's region C); it is tried first, within the gate, so that wide early
+        beliefs are not mixed up by nearest-neighbour association.
         """
         z, dist, i = self._nearest(z, kind)
+        if expected is not None:
+            if not 0 <= expected < len(self.contacts):
+                raise ConfigError(f"{self.key}.expected", f"no contact {expected!r}")
+            c = self.contacts[expected]
+            d = float(c.belief.mahalanobis(z, c.belief.cov + c.belief.R))
+            if c.kind == kind and d <= self.gate:
+                dist, i = d, expected
         if (v_used is None) != (f_measured is None):
             raise ConfigError(f"{self.key}.f_measured", "give both v_used and f_measured, or none")
         if v_used is not None and kind != "collision":
