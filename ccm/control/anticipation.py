@@ -255,14 +255,23 @@ class AnticipatoryAVIC(ModalAVIC):
             )  # fmt: skip
             hit = 1.0
             self._release(ev.index, obs.t)
-        alpha, k_star = 0.0, self.k_max
+        alpha, k_star, kind = 0.0, self.k_max, ""
         for w in self._windows:
             a = w.alpha(obs.t, self.blend_s)
             if a > alpha:
-                alpha, k_star = a, (self.k_collision if w.kind == "collision" else self.k_max)
+                alpha, kind = a, w.kind
+                k_star = self.k_collision if w.kind == "collision" else self.k_max
         if alpha > 0.0:
             kd = self.damping_for(k_star)
-            u2m, u2f = self.motion_force(obs, target, k_star, kd)
+            t2 = target
+            if kind == "collision" and target.force_dir is not None:
+                # Eq. 8 is an impedance law: until the contact is made, the re-timed position
+                # target (not the force loop) sets the approach speed into the surface
+                t2 = TargetSample(
+                    target.t, target.position, target.velocity, target.acceleration,
+                    target.orientation, None, 0.0, target.segment, target.done,
+                )  # fmt: skip
+            u2m, u2f = self.motion_force(obs, t2, k_star, kd)
             force = (1.0 - alpha) * cmd.force + alpha * (u2m + u2f)
             cmd = Command(force=force, torque=cmd.torque)
             k1 = self._signals["stiffness_Npm"]
