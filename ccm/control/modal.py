@@ -93,6 +93,7 @@ class ModalAVIC(AVIC):
         allowed = (
             "feature", "trigger", "batch_size", "classifier", "min_normal_force",
             "sliding_speed", "min_mode_samples", "contact_loss_steps", "feature_lowpass_hz",
+            "settle_time_constants",
         )  # fmt: skip
         for k in m:
             if k not in allowed:
@@ -115,6 +116,9 @@ class ModalAVIC(AVIC):
             f"{key}.min_normal_force", m.get("min_normal_force", 1.0)
         )
         self.sliding_speed = check_nonneg(f"{key}.sliding_speed", m.get("sliding_speed", 0.01))
+        self.settle_time_constants = check_nonneg(
+            f"{key}.settle_time_constants", m.get("settle_time_constants", 3.0)
+        )
         lp = m.get("feature_lowpass_hz")
         self.feature_lowpass_hz = (
             None if lp is None else check_positive(f"{key}.feature_lowpass_hz", lp)
@@ -168,12 +172,14 @@ class ModalAVIC(AVIC):
             if self.feature_lowpass_hz is None
             else first_order_alpha(control_dt, self.feature_lowpass_hz)
         )
-        # a batch starts 3 filter time constants (95 % of a step) after its trigger, so it
-        # holds the new surface's ratio, not the filter's ramp from the old one
+        # a batch starts settle_time_constants filter time constants (3: 95 % of a step) after
+        # its trigger, so it holds the new surface's ratio, not the filter's ramp from the old one
         self.settle_steps = (
             0
             if self.feature_lowpass_hz is None
-            else math.ceil(3.0 / (2.0 * math.pi * self.feature_lowpass_hz) / control_dt)
+            else math.ceil(
+                self.settle_time_constants / (2.0 * math.pi * self.feature_lowpass_hz) / control_dt
+            )
         )
         self._settle = 0
         self._signals.update(self._mode_signals(0.0, 0.0, 0.0))
