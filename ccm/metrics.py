@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from ccm.contact_metrics import contact_metrics
 from ccm.errors import check_positive
 from ccm.filters import first_order_alpha
 from ccm.mode_metrics import mode_metrics
@@ -184,6 +185,7 @@ EXTRA_METRICS = {
     "force_prediction": force_prediction_metrics,
     "lag": lag_metrics,
     "modes": mode_metrics,
+    "contacts": contact_metrics,
 }
 
 
@@ -204,8 +206,17 @@ def check_extra_metrics(cfg: Any) -> list[str]:
 def compute_extra_metrics(
     names: Sequence[str], log: Mapping[str, np.ndarray], comp: Any, cfg: Any
 ) -> dict[str, float | None]:
-    """Run the experiment's extra metrics on one trial log."""
+    """Run the experiment's extra metrics on one trial log.
+
+    Each metric gets ``params`` = ``cfg.metrics`` plus ``task_contacts``: the task's expected
+    contacts in pattern order, each ``{name, position, kind}`` merged with its annotations
+    ``{segment, segment_index, normal}`` (:class:`ccm.tasks.task.Task`; used by ``contacts``,
+    :mod:`ccm.contact_metrics`, seed A §4.5.1).
+    """
     params = dict(cfg.metrics)
+    task = comp.task
+    notes = getattr(task, "contact_annotations", ()) or ({},) * len(task.contacts)
+    params["task_contacts"] = [{**c, **a} for c, a in zip(task.contacts, notes, strict=True)]
     out: dict[str, float | None] = {}
     for name in names:
         out.update(EXTRA_METRICS[name](log, comp.task.dim, params))

@@ -27,7 +27,8 @@ def write_figures(
 
     Besides the five standard figures, ``error_vs_trial.png`` appears when a condition has
     several trials, ``force_prediction.png`` when a controller logs ``pred_force_N``, and
-    ``modes.png`` / ``mode_stiffness_error.png`` when it logs ``mode`` (:mod:`ccm.plots_modes`).
+    ``modes.png`` / ``mode_stiffness_error.png`` when it logs ``mode`` (:mod:`ccm.plots_modes`),
+    and ``contact_transitions.png`` for the H4 contacts experiment (:mod:`ccm.plots_contacts`).
     """
     import matplotlib
 
@@ -198,4 +199,9 @@ def write_figures(
     from ccm.plots_modes import write_mode_figures
 
     write_mode_figures(logs, dim, trials, save)
+
+    # 9. speed, acceleration and force around collisions (seed A §4.5.1, Fig. 16)
+    from ccm.plots_contacts import write_contact_figures
+
+    write_contact_figures(logs, dim, trials, settings, save)
     return written

@@ -41,10 +41,15 @@ def _rows(
     return rows
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """[start, end) index pairs of the runs where ``mask`` is true."""
-    d = np.diff(np.r_[0, mask.astype(int), 0])
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True))
+def shade_runs(ax: Any, t: np.ndarray, mask: np.ndarray, label: str | None) -> None:
+    """Shade (gold) every run of steps where ``mask`` is true; ``label`` on the first only.
+    Shared by the mode and contact-transition figures."""
+    d = np.diff(np.r_[0, np.asarray(mask).astype(int), 0])
+    for i, (a, b) in enumerate(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True)):
+        ax.axvspan(
+            t[a], t[min(b, len(t) - 1)], color="gold", alpha=0.35, lw=0,
+            label=label if i == 0 else None,
+        )  # fmt: skip
 
 
 def _mark(ax: Any, log: Log, legend: bool) -> None:
@@ -61,16 +66,8 @@ def _mark(ax: Any, log: Log, legend: bool) -> None:
                 label="true transition" if legend and i == 0 else None,
             )
     if "mode_collecting" in log:
-        spans = _runs(np.asarray(log["mode_collecting"]) == 1.0)
-        for i, (a, b) in enumerate(spans):
-            ax.axvspan(
-                t[a],
-                t[min(b, len(t) - 1)],
-                color="gold",
-                alpha=0.35,
-                lw=0,
-                label="collecting batch" if legend and i == 0 else None,
-            )
+        label = "collecting batch" if legend else None
+        shade_runs(ax, t, np.asarray(log["mode_collecting"]) == 1.0, label)
 
 
 def _modes_panel(ax: Any, label: str, log: Log) -> None:

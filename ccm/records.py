@@ -49,6 +49,7 @@ class TrialRecorder:
 
     def __init__(self, dim: int, signal_keys: Sequence[str], extra_keys: Sequence[str]) -> None:
         self.dim = dim
+        self.pattern_duration: float | None = None  # set by the runner: the (re-timed) P's end
         self.signal_keys = list(signal_keys)
         self.extra_keys = list(extra_keys)
         self._rows: list[tuple[Observation, TargetSample, Command, StepInfo, Mapping]] = []

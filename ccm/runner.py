@@ -3,6 +3,13 @@
 A condition is a list of Hydra overrides applied on top of the run's own overrides (e.g.
 ``[controller=fixed_impedance_high]``), so every condition is a fully composed config.
 The runner never changes the working directory; ``summary.json`` is written last.
+
+Learned state. At the end of a run, every condition whose controller learns writes
+``state/<condition>.json`` (format in :mod:`ccm.learned_state`). With ``init_from=<run dir>``
+each condition's controller is built from the config as usual and then loads
+``<run dir>/state/<condition>.json`` before its first trial (settings stay the config's;
+models, beliefs and counters come from the file). Trials are still numbered 1..n within the
+run (and seeded accordingly).
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ from ccm.errors import (
     check_nonneg,
     check_positive,
 )
+from ccm.learned_state import load_states, save_states
 from ccm.metrics import aggregate, check_extra_metrics, compute_extra_metrics, trial_metrics
 from ccm.records import TrialRecorder, write_json_atomic
 from ccm.sim import make_sim
@@ -48,6 +56,7 @@ class Condition:
     name: str
     cfg: DictConfig
     overrides: list[str]
+    prior_trials: int = 0  # trials learned by the state loaded through ``init_from``
 
 
 @dataclass
@@ -70,6 +79,10 @@ class Components:
     sim: Simulator
     task: Task
     controller: Controller
+
+
+#: conditions, each with its phases' built components (:func:`plan_experiment`)
+Plan = list[tuple[Condition, list[tuple[Phase, Components]]]]
 
 
 def plain(node: Any) -> Any:
@@ -130,7 +143,25 @@ def plan_experiment(
             pcfg = compose([*cond.overrides, *ph.overrides]) if ph.overrides else cond.cfg
             built.append((ph, build_components(pcfg)))
         plan.append((cond, built))
+    init_from = OmegaConf.select(cfg, "init_from", default=None)
+    if init_from is not None:
+        load_learned_states(init_from, plan)
     return plan
+
+
+def save_learned_states(out_dir: Path, plan: Plan, trials: dict[str, int]) -> None:
+    """Write ``state/<condition>.json`` for every condition whose controller learns."""
+    save_states(
+        out_dir / "state",
+        [(c.name, ph[0][1].controller, c.prior_trials + trials.get(c.name, 0)) for c, ph in plan],
+    )
+
+
+def load_learned_states(init_from: Any, plan: Plan) -> None:
+    """Start each condition's controller from ``<init_from>/state/<condition>.json``."""
+    prior = load_states(init_from, [(c.name, ph[0][1].controller) for c, ph in plan])
+    for cond, _ in plan:
+        cond.prior_trials = prior.get(cond.name, 0)
 
 
 def build_components(cfg: DictConfig) -> Components:
@@ -179,6 +210,7 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
         ),
         "figures": bool(exp.get("figures", True)),
         "fast": fast,
+        "max_retime_s": check_nonneg("experiment.max_retime_s", exp.get("max_retime_s", 60.0)),
     }
 
 
@@ -187,23 +219,38 @@ def run_trial(
     seed: int,
     duration_s: float,
     progress: Callable[[int], None] | None = None,
+    *,
+    max_extension_s: float = math.inf,
 ) -> TrialRecorder:
-    """Run one trial: sample P, control, step the simulator, record. Raises on divergence."""
+    """Run one trial: sample P, control, step the simulator, record. Raises on divergence.
+
+    ``duration_s`` is the trial length for the planned pattern. A controller may re-time it
+    (:meth:`Controller.prepare`), also during the trial: the trial then lasts
+    ``duration_s`` plus however much longer the re-timed pattern currently is, up to
+    ``max_extension_s`` (0 = never longer). The recorder's ``pattern_duration`` is the
+    pattern's final duration (for the completion time).
+    """
     obs, info = comp.sim.reset(seed=seed)
     comp.controller.reset(comp.task.dim, comp.sim.control_dt)
     planned = comp.task.pattern
     pattern = comp.controller.prepare(planned, comp.task.contacts, np.random.default_rng(seed))
-    duration_s += pattern.duration - planned.duration  # a re-timed pattern may take longer
-    n_steps = max(1, int(math.floor(duration_s / comp.sim.control_dt + 1e-9)))
+    dt = comp.sim.control_dt
+
+    def n_steps() -> int:
+        extra = min(max(pattern.duration - planned.duration, 0.0), max_extension_s)
+        return max(1, int(math.floor((duration_s + extra) / dt + 1e-9)))
+
     # The loop allocates many small acyclic objects that the recorder keeps; the cyclic
     # garbage collector would rescan them ever more often, so it is paused for the trial.
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
-        return _closed_loop(comp, pattern, obs, info, n_steps, progress)
+        rec = _closed_loop(comp, pattern, obs, info, n_steps, progress)
     finally:
         if gc_was_enabled:
             gc.enable()
+    rec.pattern_duration = float(pattern.duration)
+    return rec
 
 
 def _closed_loop(
@@ -211,15 +258,17 @@ def _closed_loop(
     pattern: Any,
     obs: Observation,
     info: StepInfo,
-    n_steps: int,
+    n_steps: Callable[[], int],
     progress: Callable[[int], None] | None,
 ) -> TrialRecorder:
-    """The per-step loop of :func:`run_trial`."""
+    """The per-step loop of :func:`run_trial`; ``n_steps()`` is re-read every step (a
+    re-timing controller may change the pattern's duration during the trial)."""
     sim, ctrl = comp.sim, comp.controller
     max_speed = float(getattr(sim, "max_speed", math.inf))
-    tick = max(1, n_steps // 100)
+    tick = max(1, n_steps() // 100)
     rec = TrialRecorder(comp.task.dim, list(ctrl.signals()), sorted(info.extra))
-    for k in range(n_steps):
+    k = -1
+    while (k := k + 1) < n_steps():
         target = pattern.sample(obs.t)
         cmd = ctrl.step(obs, target)
         rec.record(obs, target, cmd, info, ctrl.signals())
@@ -241,8 +290,10 @@ def run_experiment(
     """Run every condition × phase × trial of ``cfg.experiment``; write the run directory.
 
     The controller of a condition is built once and carries its learned state through all
-    of the condition's phases and trials (``end_trial`` after each). ``conditions.<name>``
-    in the summary averages the trials of the *last* phase; every trial is in ``trials``.
+    of the condition's phases and trials (``end_trial`` after each); at the end it is saved
+    to ``state/<condition>.json`` (module docstring; ``init_from`` loads it).
+    ``conditions.<name>`` in the summary averages the trials of the *last* phase; every
+    trial is in ``trials``.
     Returns the summary dict (also written to ``out_dir/summary.json`` last).
     """
     settings = check_experiment(cfg)
@@ -256,6 +307,8 @@ def run_experiment(
         d = comp.task.pattern.duration + settings["settle_time_s"]
         return d if settings["max_time_s"] is None else min(d, settings["max_time_s"])
 
+    # a truncated trial (max_time_s, fast) is never lengthened by re-timing
+    extension = 0.0 if settings["max_time_s"] is not None else settings["max_retime_s"]
     total_steps = sum(
         int(duration(comp) / comp.sim.control_dt) * n_trials(ph)
         for _, phases in plan
@@ -266,6 +319,7 @@ def run_experiment(
     logs: dict[str, list[dict[str, np.ndarray]]] = {}
     wall0 = time.perf_counter()
     sim_time = 0.0
+    done: dict[str, int] = {}  # trials run per condition
     try:
         for cond, phases in plan:
             controller = phases[0][1].controller
@@ -274,16 +328,20 @@ def run_experiment(
                 comp = Components(sim=comp.sim, task=comp.task, controller=controller)
                 for _ in range(n_trials(ph)):
                     trial += 1
+                    done[cond.name] = trial
                     seed = trial_seed(int(cfg.seed), trial)
-                    rec = run_trial(comp, seed, duration(comp), bar.update if bar else None)
-                    sim_time += duration(comp)
+                    rec = run_trial(
+                        comp, seed, duration(comp), bar.update if bar else None,
+                        max_extension_s=extension,
+                    )  # fmt: skip
+                    sim_time += len(rec) * comp.sim.control_dt
                     rec.write_csv(out_dir / "timeseries" / cond.name / f"trial_{trial:03d}.csv")
                     arrays = rec.arrays()
                     metrics = trial_metrics(
                         arrays,
                         comp.task.dim,
                         comp.sim.control_dt,
-                        comp.task.pattern.duration,
+                        rec.pattern_duration,
                         settings["lowpass_hz"],
                         settings["completion_tol_m"],
                     )
@@ -305,6 +363,7 @@ def run_experiment(
     finally:
         if bar is not None:
             bar.close()
+    save_learned_states(out_dir, plan, done)
     wall = time.perf_counter() - wall0
     last_phase = {cond.name: phases[-1][0].name for cond, phases in plan}
     if settings["figures"]:
@@ -333,6 +392,9 @@ def run_experiment(
         },
         "trials": trials_out,
     }
+    init_from = OmegaConf.select(cfg, "init_from", default=None)
+    if init_from is not None:
+        summary["init_from"] = str(init_from)  # as given: the same command, the same summary
     # wall-clock facts vary run to run, so they live outside summary.json (determinism)
     write_json_atomic(
         out_dir / "run_info.json",

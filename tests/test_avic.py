@@ -83,6 +83,20 @@ def test_predicted_wrench_directions() -> None:
     np.testing.assert_allclose(m.predicted_wrench(2.0, obs(force=(3.0, 4.0))), [1.2, 1.6])
 
 
+def test_along_motion_drops_the_reaction_of_a_wall_it_presses_into() -> None:
+    """``along_motion``: only the measured force's part along the measured motion is
+    cancelled, so a wall's normal reaction (across the motion) gets no feed-forward, and a
+    tool stalled against a surface gets none at all (no F = K d / (1 - lambda) runaway)."""
+    c = make(ff_direction="along_motion", min_speed=0.01)
+    # sliding along +y against a wall at +x: reaction -3 N along x, friction -1.5 N along y
+    w = c.predicted_wrench(2.0 * float(np.hypot(3.0, 1.5)), obs(vel=(0.0, 0.1), force=(-3.0, -1.5)))
+    np.testing.assert_allclose(w, [0.0, -3.0])
+    # stalled against the wall (the target inside it): no motion, no feed-forward
+    np.testing.assert_array_equal(
+        c.predicted_wrench(5.0, obs(vel=(0.001, 0.0), force=(-3.0, 0.0))), 0.0
+    )
+
+
 @pytest.mark.parametrize(
     ("kwargs", "key"),
     [

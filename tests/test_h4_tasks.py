@@ -24,7 +24,11 @@ from ccm.tasks.task import load_task
 from ccm.types import Command, Observation, StepInfo
 
 TASKS = ("h4_collisions", "h4_contact_learning", "h4_impactless")
-BASE = ["sim=pybullet3d", "experiment=single", "controller=fixed_impedance_high"]
+# the compliant 45 N/mm tool contact the H4 experiments use (configs/experiment/h4_*.yaml)
+BASE = [
+    "sim=pybullet3d", "experiment=single", "controller=fixed_impedance_high",
+    "sim.contact_stiffness=11250", "sim.contact_damping=100",
+]  # fmt: skip
 NOMINAL_TOL_M = 0.005  # m: a contact's tool-point position vs its nominal (<= 0.3 mm measured)
 MAX_PATTERN_SPEED = 0.15  # m/s, issue #5: every target speed at most ~0.15 m/s
 MAX_DURATION_S = 15.0  # s, issue #5: the whole pattern at most ~15 s

@@ -409,3 +409,28 @@ def test_build_pattern_3d_errors() -> None:
         build_pattern([arc], [0.1], 0.001)
     with pytest.raises(ConfigError, match=r"^control_dt: must be > 0"):
         build_pattern([LINE], [0.0, 0.0], 0.0)
+
+
+def test_line_arriving_at_speed() -> None:
+    """``end_speed``: starts at rest, reaches ``to`` exactly, moving at end_speed along the
+    line with zero acceleration, and never moves backwards (w <= 2)."""
+    seg = LineSegment([0.0, 0.0, 0.15], [0.0, 0.0, 0.095], 1.0, end_speed=0.08)
+    p0, v0, a0 = seg.sample(0.0)
+    p1, v1, a1 = seg.sample(1.0)
+    np.testing.assert_array_equal(p1, [0.0, 0.0, 0.095])
+    np.testing.assert_allclose(v0, 0.0, atol=1e-15)
+    np.testing.assert_allclose(a0, 0.0, atol=1e-15)
+    np.testing.assert_allclose(v1, [0.0, 0.0, -0.08], atol=1e-12)
+    np.testing.assert_allclose(a1, 0.0, atol=1e-12)
+    ts = np.linspace(0.0, 1.0, 201)
+    speed = np.array([np.linalg.norm(seg.sample(t)[1]) for t in ts])
+    direction = np.array([seg.sample(t)[1][2] for t in ts])
+    assert np.all(direction <= 1e-15), "always moving towards -z"
+    assert speed.max() < 0.12
+    # derivatives are consistent (central differences)
+    h = 1e-6
+    for t in (0.2, 0.5, 0.9):
+        dp = (seg.sample(t + h)[0] - seg.sample(t - h)[0]) / (2 * h)
+        np.testing.assert_allclose(dp, seg.sample(t)[1], atol=1e-7)
+    with pytest.raises(ConfigError, match="end_speed"):
+        LineSegment([0.0, 0.0], [0.1, 0.0], 1.0, end_speed=0.5, key="task.pattern[0]")

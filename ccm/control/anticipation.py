@@ -39,6 +39,7 @@ is made, since a force loop would otherwise set the approach speed itself.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -48,15 +49,15 @@ import numpy as np
 from ccm.control.avic import _OWN_KEYS as _AVIC_KEYS
 from ccm.control.impedance import FixedImpedance
 from ccm.control.modal import ModalAVIC
-from ccm.errors import ConfigError, check_positive, constructor_kwargs
+from ccm.errors import ConfigError, check_nonneg, check_positive, constructor_kwargs
 from ccm.learn.collisions import CollisionDetector
 from ccm.learn.contacts import ContactMap
 from ccm.tasks.retiming import RetimedPattern, TimeWarp
 from ccm.types import Command, Observation, TargetSample
 
 _KEYS = (
-    "sigma_scale", "blend_s", "k_collision", "path_dt", "init_noise_std", "init_std",
-    "use_kinds", "map", "collisions",
+    "sigma_scale", "min_region_radius_m", "blend_s", "k_collision", "path_dt",
+    "init_noise_std", "init_std", "use_kinds", "map", "collisions",
 )  # fmt: skip
 
 
@@ -71,6 +72,10 @@ class _Window:
     t1: float
     release: float  # planned: where the path leaves C; moved earlier when the contact is made
     done: bool = False
+    u: np.ndarray | None = None  # planned approach direction at p_c (collisions)
+    f_ref: float = 0.0  # force along u when p_c was reached [N]
+    rise_since: float = math.inf  # since when that force is up by the jump threshold [s]
+    pressed: bool = False  # that rise has lasted long enough (a quasi-static contact)
 
     def alpha(self, t: float, blend_s: float) -> float:
         if t < self.t0:
@@ -86,9 +91,11 @@ class AnticipatoryAVIC(ModalAVIC):
     """AVIC + Algorithm 1 + contact anticipation and transition handling (seed A §3.3–3.5).
 
     Args:
-        anticipation: ``sigma_scale`` (region C, Mahalanobis radius), ``blend_s`` (T of
-            Eq. 10 and of the Eq. 11 rate changes [s]), ``k_collision`` (K* of Eq. 8 before
-            a collision [N/m]), ``path_dt`` (sampling of the plan for p_c [s]),
+        anticipation: ``sigma_scale`` (region C, Mahalanobis radius),
+            ``min_region_radius_m`` (floor on C's semi-axes [m]: the plan runs inside the
+            surfaces it presses on, so the tool meets a contact off the planned path),
+            ``blend_s`` (T of Eq. 10 and of the Eq. 11 rate changes [s]), ``k_collision``
+            (K* of Eq. 8 before a collision [N/m]), ``path_dt`` (sampling of the plan for p_c [s]),
             ``init_noise_std`` / ``init_std`` (vision-noise and initial belief std [m]),
             ``use_kinds`` (which kinds of the task's contacts the robot is told about),
             ``map`` (:class:`ContactMap` arguments) and ``collisions``
@@ -104,7 +111,10 @@ class AnticipatoryAVIC(ModalAVIC):
             if k not in _KEYS:
                 raise ConfigError(f"{key}.{k}", f"unknown key; allowed: {', '.join(_KEYS)}")
         self.ant_key = key
-        self.sigma_scale = check_positive(f"{key}.sigma_scale", a.get("sigma_scale", 2.0))
+        self.sigma_scale = check_positive(f"{key}.sigma_scale", a.get("sigma_scale", 3.0))
+        self.min_region_m = check_nonneg(
+            f"{key}.min_region_radius_m", a.get("min_region_radius_m", 0.0)
+        )
         self.blend_s = check_positive(f"{key}.blend_s", a.get("blend_s", 0.2))
         self.k_collision = check_positive(f"{key}.k_collision", a.get("k_collision", self.k_free))
         self.path_dt = check_positive(f"{key}.path_dt", a.get("path_dt", 0.005))
@@ -141,6 +151,11 @@ class AnticipatoryAVIC(ModalAVIC):
         self._hits: dict[int, float] = {}  # contact -> wall time of the detected contact
         self._trigger_pos: np.ndarray | None = None
         self._last_mode = -1.0
+        # (t, planned velocity) of the last ~0.2 s: a collision's v of Eq. 9 is the speed the
+        # robot was *commanded* to approach with at the onset (the quantity Eq. 9 revises)
+        self._vel_hist: deque[tuple[float, np.ndarray]] = deque(
+            maxlen=max(2, round(0.2 / control_dt))
+        )
         self._signals.update(self._ant_signals(0.0, 0.0))
 
     def _ant_signals(self, alpha: float, event: float) -> dict[str, float]:
@@ -170,10 +185,10 @@ class AnticipatoryAVIC(ModalAVIC):
         self._plan_ts, self._plan_speed = ts, speed
         entries = []
         for i, c in enumerate(self.contact_map.contacts):
-            k = c.belief.first_entry(pos, self.sigma_scale)
+            k = c.belief.first_entry(pos, self.sigma_scale, self.min_region_m)
             if k is None:
                 continue
-            inside = c.belief.region_contains(pos[k:], self.sigma_scale)
+            inside = c.belief.region_contains(pos[k:], self.sigma_scale, "path", self.min_region_m)
             out = np.flatnonzero(~np.atleast_1d(inside))
             exit_k = k + int(out[0]) if out.size else len(ts) - 1
             v_a = c.approach.next_velocity() if c.approach is not None else math.inf
@@ -186,52 +201,65 @@ class AnticipatoryAVIC(ModalAVIC):
         return self._retimed
 
     def _replan(self, t_from: float) -> None:
-        """(Re)build the warp from wall time ``t_from`` on, keeping earlier rate changes."""
+        """(Re)build the warp from wall time ``t_from`` on, keeping earlier rate changes.
+
+        Every collision not yet made has a slow span [φ_e, φ_x] of the plan: from where the
+        path enters its region C (or ``t_from``'s φ, if the path is inside C already) to where
+        it leaves C, with rate ρ = v_a / (the plan's top speed in the span), so the target
+        never moves faster than v_a inside C. Overlapping spans (large regions in early
+        trials) merge: the rate is the smallest of the spans covering φ. A slow-down is
+        complete where its span begins (Eq. 10: the switch is complete on reaching C); a
+        speed-up starts where the last covering span ends; each change lasts ``blend_s``
+        (shorter if the plan leaves no room) with Eq. 11's C∞ profile.
+        """
         changes = [c for c in self._changes if c[0] < t_from]
         warp = TimeWarp(changes, rate0=self._rate0)
         windows = [w for w in self._windows if w.t0 < t_from]
         phi_from = float(warp.phi(t_from)) if t_from > 0 else 0.0
+        cur = changes[-1][2] if changes else self._rate0
+        t_free = max(t_from, changes[-1][1] if changes else 0.0)
+        spans = []
         for i, phi_c, phi_x, v_a in self._slow:
-            if i in self._hits:
+            if i in self._hits or phi_x <= phi_from:
                 continue
-            if phi_c <= phi_from and t_from == 0.0 and not changes:  # starts inside C
-                v_plan = float(np.max(np.interp(
-                    np.linspace(0.0, phi_x, 50), self._plan_ts, self._plan_speed
-                )))  # fmt: skip
-                rho = min(1.0, v_a / v_plan) if v_plan > 1e-6 else 1.0
-                t_x = phi_x / rho
-                warp = TimeWarp([], rate0=rho)
-                changes = [(t_x, t_x + self.blend_s, 1.0)]
-                self._rate0 = rho
-                warp = TimeWarp(changes, rate0=rho)
-                windows.append(_Window(i, "collision", 0.0, 1e-9, t_x))
+            phi_e = max(phi_c, phi_from)
+            sel = (self._plan_ts >= phi_e - 1e-12) & (self._plan_ts <= phi_x + 1e-12)
+            v_ref = float(np.max(self._plan_speed[sel])) if np.any(sel) else 0.0
+            rho = min(1.0, v_a / v_ref) if v_ref > 1e-6 else 1.0
+            spans.append((phi_e, phi_x, rho, i))
+
+        def wanted(phi: float) -> float:
+            return min([r for e, x, r, _ in spans if e <= phi < x] + [1.0])
+
+        for bp in sorted({phi_from} | {e for e, *_ in spans} | {x for _, x, *_ in spans}):
+            r = wanted(bp)
+            if abs(r - cur) < 1e-12:
                 continue
-            if phi_c <= phi_from:
+            if bp <= phi_from and t_from == 0.0 and not changes:  # starts inside C
+                self._rate0 = cur = r
+                warp = TimeWarp([], rate0=r)
                 continue
-            v_plan = float(np.interp(phi_c, self._plan_ts, self._plan_speed))
-            t_end_prev = changes[-1][1] if changes else 0.0
-            if v_plan <= v_a or v_plan < 1e-6:  # already slow enough: only the blend
-                t_c = warp.inverse(phi_c)
-                windows.append(_Window(i, "collision", max(t_c - self.blend_s, t_end_prev),
-                                       t_c, warp.inverse(phi_x)))  # fmt: skip
-                continue
-            rho = v_a / v_plan
-            phi_s = max(
-                phi_c - 0.5 * (1.0 + rho) * self.blend_s, float(warp.phi(t_end_prev)), phi_from
-            )
-            dur = 2.0 * (phi_c - phi_s) / (1.0 + rho)  # the slow-down completes at p_c
-            if dur <= 1e-6:
-                continue
-            t_s = warp.inverse(phi_s)
-            t_c = t_s + dur
-            t_x = t_c + (phi_x - phi_c) / rho
-            changes += [(t_s, t_c, rho), (t_x, t_x + self.blend_s, 1.0)]
+            if r < cur:  # slow down, complete at bp
+                phi_s = max(bp - 0.5 * (cur + r) * self.blend_s, float(warp.phi(t_free)))
+                t_s = warp.inverse(phi_s)
+                dur = max(2.0 * (bp - phi_s) / (cur + r), 0.02)
+            else:  # speed up from bp
+                t_s = max(warp.inverse(bp), t_free)
+                dur = self.blend_s
+            changes.append((t_s, t_s + dur, r))
             warp = TimeWarp(changes, rate0=self._rate0)
-            windows.append(_Window(i, "collision", t_s, t_c, t_x))
+            cur, t_free = r, t_s + dur
+        for phi_e, phi_x, _, i in spans:
+            if phi_e <= phi_from:  # inside C now: the transition controller at once
+                t0 = t1 = t_from
+            else:
+                t1 = warp.inverse(phi_e)
+                t0 = max(t1 - self.blend_s, t_from)
+            windows.append(_Window(i, "collision", t0, t1 + 1e-9, warp.inverse(phi_x)))
         for i, phi_c, phi_x in self._impactless:
             if phi_c > phi_from:
                 t_c = warp.inverse(phi_c)
-                windows.append(_Window(i, "impactless", max(t_c - self.blend_s, 0.0), t_c,
+                windows.append(_Window(i, "impactless", max(t_c - self.blend_s, t_from), t_c,
                                        warp.inverse(phi_x)))  # fmt: skip
         self._changes, self._windows = changes, windows
         if self._retimed is None:
@@ -245,17 +273,32 @@ class AnticipatoryAVIC(ModalAVIC):
     def step(self, obs: Observation, target: TargetSample) -> Command:
         """Base command (Eq. 4a) blended with the transition-phase command (Eq. 8, Eq. 10)."""
         event = self.detector.update_obs(obs)
+        self._vel_hist.append((obs.t, target.velocity))
         if self._signals.get("mode_trigger") == 1.0:
             self._trigger_pos = obs.position.copy()
         cmd = super().step(obs, target)
         self._impactless_event(obs)
         hit = 0.0
+        if event is not None and not self._approaching(event):
+            event = None
         if event is not None and self.contact_map is not None:
+            v_cmd = float(np.linalg.norm(self._commanded_velocity(event.onset_time)))
+            measured = {"v_used": v_cmd, "f_measured": event.impact_force_N}
+            if v_cmd < self.detector.min_approach_speed:
+                measured = {}  # the plan was not approaching: no Eq. 9 measurement
             ev = self.contact_map.observe(
-                event.position, "collision", v_used=max(event.approach_speed, 1e-6),
-                f_measured=event.impact_force_N, expected=self._expected(obs.t, "collision"),
+                event.position, "collision", **measured,
+                expected=self._expected(obs.t, "collision"),
             )  # fmt: skip
             hit = 1.0
+            self._release(ev.index, obs.t)
+        elif self.contact_map is not None and self._pressed(obs, target):
+            # contact made without a detectable impact: position only
+            ev = self.contact_map.observe(
+                obs.position, "collision",
+                expected=self._expected(obs.t, "collision", pressed=True),
+            )  # fmt: skip
+            hit = 2.0
             self._release(ev.index, obs.t)
         alpha, k_star, kind = 0.0, self.k_max, ""
         for w in self._windows:
@@ -283,12 +326,68 @@ class AnticipatoryAVIC(ModalAVIC):
             self._signals["pattern_rate"] = float(self._retimed.warp.rate(obs.t))
         return cmd
 
-    def _expected(self, t: float, kind: str) -> int | None:
-        """The contact of the earliest open transition window of ``kind`` at time t."""
+    def _pressed(self, obs: Observation, target: TargetSample) -> bool:
+        """Whether an open collision window's contact was made *quasi-statically*: past p_c, the
+        force against the planned approach direction has risen by ``jump_threshold_N`` over
+        its level at p_c (friction of a slide included there), and stayed up for twice the
+        detector's peak window (so a collision the detector will report is left to it). At a
+        slow approach speed a
+        contact may show neither the force spike nor the loss of speed of a collision (seed A
+        §6: "difficult to isolate the impact force from the force due to surface friction"),
+        and without this the slow phase would last to the region's end. Sets ``w.pressed``."""
+        found = False
         for w in self._windows:
-            if w.kind == kind and not w.done and w.t0 <= t <= w.release + self.blend_s:
-                return w.contact
-        return None
+            if w.kind != "collision" or w.done or obs.t < w.t1:
+                continue
+            if w.u is None:
+                speed = math.sqrt(float(target.velocity @ target.velocity))
+                if speed < 1e-6:
+                    continue
+                w.u = target.velocity / speed
+                w.f_ref = -float(obs.force @ w.u)
+                continue
+            if -float(obs.force @ w.u) - w.f_ref < self.detector.jump_threshold_N:
+                w.rise_since = math.inf
+                continue
+            w.rise_since = min(w.rise_since, obs.t)
+            w.pressed = obs.t - w.rise_since >= 2.0 * self.detector.peak_window_s
+            found = found or w.pressed
+        return found
+
+    def _commanded_velocity(self, t: float) -> np.ndarray:
+        """The planned (re-timed) velocity at time t (the last sample at or before it) [m/s]."""
+        v = self._vel_hist[0][1]
+        for ti, vi in self._vel_hist:
+            if ti > t + 1e-12:
+                break
+            v = vi
+        return v
+
+    def _approaching(self, event: Any) -> bool:
+        """Whether a detected spike is a collision *ahead*: the force acted against the motion
+        (F_m >= the jump threshold) and the tool was moving along the commanded motion
+        (cos >= 0.5 between v_pre and the planned velocity at the onset). Stick-slip while
+        sliding along a wall also stops the tool with a force jump, across the motion
+        (measured in h4_collisions: cos 0.16 at 8 mm/s)."""
+        if event.impact_force_N < self.detector.jump_threshold_N:
+            return False
+        v_cmd = self._commanded_velocity(event.onset_time)
+        v_pre = np.asarray(event.approach_velocity, dtype=float)
+        den = float(np.linalg.norm(v_cmd) * np.linalg.norm(v_pre))
+        return den > 0.0 and float(v_cmd @ v_pre) / den >= 0.5
+
+    def _expected(self, t: float, kind: str, pressed: bool = False) -> int | None:
+        """Of the contacts whose transition window of ``kind`` is open at time t (only those
+        with ``pressed`` set, if asked), the first in plan order: the task lists its contacts
+        in the order the pattern meets them, and contacts first seen later come after them.
+        Early regions are large and overlap, so several windows can be open at once, and
+        beliefs 0.1 m off cannot tell two contacts 8 cm apart by distance."""
+        open_ = [
+            w.contact for w in self._windows
+            if w.kind == kind and not w.done and w.t0 <= t <= w.release + self.blend_s
+            and (w.pressed or not pressed)
+        ]  # fmt: skip
+        return min(open_) if open_ else None
 
     def _impactless_event(self, obs: Observation) -> None:
         """An Algorithm 1 decision that changes the mode is an impact-less contact event."""
@@ -296,8 +395,9 @@ class AnticipatoryAVIC(ModalAVIC):
         if s["mode_event"] > 0 and self._trigger_pos is not None and self.contact_map is not None:
             if self._last_mode >= 0 and s["mode"] != self._last_mode:
                 ev = self.contact_map.observe(
-                    self._trigger_pos, "impactless", expected=self._expected(obs.t, "impactless")
-                )
+                    self._trigger_pos, "impactless",
+                    expected=self._expected(obs.t, "impactless"),
+                )  # fmt: skip
                 for w in self._windows:
                     if w.contact == ev.index and not w.done:
                         w.release, w.done = min(w.release, obs.t), True
@@ -308,19 +408,56 @@ class AnticipatoryAVIC(ModalAVIC):
         for w in self._windows:
             if w.contact == contact and not w.done:
                 w.release, w.done = min(w.release, t), True
+            elif not w.done:  # the force of this contact is no evidence for the others
+                w.u, w.rise_since, w.pressed = None, math.inf, False
         if contact in self._hits:
             return
         self._hits[contact] = t
         if any(i == contact for i, *_ in self._slow) and self._retimed is not None:
-            # keep the slow-down that led here, return to rate 1 from now, re-plan the rest
-            last = [c for c in self._changes if c[0] < t]
-            if last and last[-1][2] != 1.0:
-                start = max(t, last[-1][1])
-                self._changes = [*last, (start, start + self.blend_s, 1.0)]
-                self._replan(start + self.blend_s)
+            self._replan(t)  # keep the clock so far; later spans only (this one is made)
 
     def end_trial(self) -> None:
         """Kalman predict step for every belief (§3.3); models of every mode (ModalAVIC)."""
         super().end_trial()
         if self.contact_map is not None:
             self.contact_map.end_trial()
+
+    def learned_state(self) -> dict[str, Any]:
+        """:meth:`ModalAVIC.learned_state` plus ``contact_map``: the contact beliefs and their
+        approach-velocity models (:meth:`ContactMap.to_dict`; None before the first trial)."""
+        state = super().learned_state()
+        state["contact_map"] = None if self.contact_map is None else self.contact_map.to_dict()
+        return state
+
+    def load_learned_state(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`learned_state` output. A saved contact map replaces the one
+        :meth:`prepare` would build from the task's nominal contacts (it builds one only while
+        there is none); its settings (``anticipation.map``) stay this config's.
+
+        Raises:
+            ConfigError: ``init_from``, on a malformed or mismatched state.
+        """
+        from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
+
+        check_state_keys(state, ("classifier", "modes", "contact_map"))
+        data, cmap = state["contact_map"], None
+        if data is not None:
+            try:
+                key = f"{self.ant_key}.map"
+                ours = ContactMap(data["settings"]["dim"], **self._map_args, key=key)
+                approach = ours.approach_params
+                contacts = [
+                    {**c, "approach": c["approach"] and {**c["approach"], "params": approach}}
+                    for c in data["contacts"]
+                ]
+                merged = {**data, "settings": ours.to_dict()["settings"], "contacts": contacts}
+                cmap = ContactMap.from_dict(merged, key="init_from")
+                dim = getattr(self, "dim", cmap.dim)
+                if cmap.dim != dim:
+                    raise ConfigError(
+                        "init_from", f"the contact map is {cmap.dim}-D, the task {dim}-D"
+                    )
+            except STATE_ERRORS as exc:
+                raise state_error(exc) from None
+        super().load_learned_state({k: v for k, v in state.items() if k != "contact_map"})
+        self.contact_map = cmap

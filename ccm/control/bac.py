@@ -11,15 +11,17 @@ same number of control steps in every trial (seed A §4.2.3).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
-from ccm.control.base import Controller
+from ccm.control.base import STATE_ERRORS, Controller, check_state_keys, state_error
 from ccm.control.impedance import DAMPING_RULES, damping_from_rule, hybrid_loop
 from ccm.errors import (
     ConfigError,
     check_choice,
     check_finite,
+    check_int_nonneg,
     check_nonneg,
     check_positive,
 )
@@ -232,27 +234,44 @@ class BAC(Controller):
         self._eps = []
         self._ep = []
 
-    def learned_state(self) -> dict[str, np.ndarray]:
-        """The learned profiles as plain arrays (for NPZ/JSON; empty before the first trial)."""
-        if self.force_profile is None or self.stiffness_profile is None:
-            return {}
+    def learned_state(self) -> dict[str, Any]:
+        """The learned profiles F(k), K(k) as nested lists (JSON-safe; null before the first
+        trial) and the number of trials they have learned from."""
+        learned = self.force_profile is not None and self.stiffness_profile is not None
         return {
-            "force_profile": self.force_profile.copy(),
-            "stiffness_profile": self.stiffness_profile.copy(),
-            "trials_learned": np.array(self.trials_learned),
+            "force_profile": self.force_profile.tolist() if learned else None,
+            "stiffness_profile": self.stiffness_profile.tolist() if learned else None,
+            "trials_learned": self.trials_learned,
         }
 
-    def load_learned_state(self, state: Mapping[str, np.ndarray]) -> None:
-        """Restore profiles saved by :meth:`learned_state`."""
-        f = np.asarray(state["force_profile"], dtype=float)
-        k = np.asarray(state["stiffness_profile"], dtype=float)
-        if f.ndim != 2 or f.shape != k.shape:
+    def load_learned_state(self, state: Mapping[str, Any]) -> None:
+        """Restore profiles saved by :meth:`learned_state` (lists or arrays).
+
+        Raises:
+            ConfigError: ``init_from``, on malformed profiles or another dimension.
+        """
+        check_state_keys(state, ("force_profile", "stiffness_profile", "trials_learned"))
+        try:
+            trials = check_int_nonneg("trials_learned", state["trials_learned"])
+            if state["force_profile"] is None and state["stiffness_profile"] is None:
+                self.force_profile = self.stiffness_profile = None
+                self.trials_learned = trials
+                return
+            f = np.asarray(state["force_profile"], dtype=float)
+            k = np.asarray(state["stiffness_profile"], dtype=float)
+        except STATE_ERRORS as exc:
+            raise state_error(exc) from None
+        if f.ndim != 2 or f.shape != k.shape or not f.size:
             raise ConfigError(
-                self._key, f"profiles must be (N, dim) alike, got {f.shape}, {k.shape}"
+                "init_from", f"profiles must be (N, dim) alike, got {f.shape}, {k.shape}"
             )
+        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(k))):
+            raise ConfigError("init_from", "profiles must be finite")
+        if self.dim and f.shape[1] != self.dim:
+            raise ConfigError("init_from", f"profiles are {f.shape[1]}-D, the task {self.dim}-D")
         self.force_profile = f.copy()
         self.stiffness_profile = np.clip(k, self.k_min, self.k_max)
-        self.trials_learned = int(state.get("trials_learned", 0))
+        self.trials_learned = trials
 
     def signals(self) -> dict[str, float]:
         """``stiffness_Npm`` mean K(k), ``damping_Nspm`` mean D(k), ``ff_force_N`` |F(k)|, plus

@@ -8,7 +8,7 @@ from typing import Any, Self
 
 import numpy as np
 
-from ccm.errors import constructor_kwargs
+from ccm.errors import ConfigError, constructor_kwargs
 from ccm.types import Command, Observation, TargetSample
 
 
@@ -17,7 +17,9 @@ class Controller(ABC):
 
     A controller never sees a simulator handle or ground truth: only the ``Observation``
     (pose, twist, measured wrench, time) and the target pattern sample. Controllers that
-    learn across trials override :meth:`end_trial`.
+    learn across trials override :meth:`end_trial`, and :meth:`learned_state` /
+    :meth:`load_learned_state` so that what they learned can be saved at the end of a run
+    and start a later run (``ccm run ... init_from=<run dir>``; JSON, no pickle).
     """
 
     @classmethod
@@ -57,3 +59,61 @@ class Controller(ABC):
 
     def end_trial(self) -> None:  # noqa: B027 - optional hook
         """Called after each trial; learning controllers update cross-trial state here."""
+
+    def learned_state(self) -> dict[str, Any] | None:
+        """What the controller has learned across trials, as JSON-safe data.
+
+        Nested dicts (string keys), lists, strings, bools, ints and finite floats only (numpy
+        arrays as lists), so that ``json.loads(json.dumps(state))`` restores it exactly. Only
+        cross-trial state belongs here (models, beliefs, counters), never per-trial state
+        that :meth:`reset` rebuilds. The settings of the current config are not part of it.
+
+        Returns:
+            ``None`` for a controller that does not learn (the default). A learning
+            controller returns a dict even before its first trial.
+        """
+        return None
+
+    def load_learned_state(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`learned_state` output (call between trials, e.g. before the first).
+
+        Settings come from this controller's own config; only what was learned comes from
+        ``state``. The controller is unchanged if the state is rejected.
+
+        Raises:
+            ConfigError: ``init_from``: this controller does not learn, or ``state`` is
+                malformed or does not fit its config.
+        """
+        raise ConfigError("init_from", f"{type(self).__name__} has no learned state to load")
+
+
+#: what malformed learned-state data raises while it is parsed (wrapped by :func:`state_error`)
+STATE_ERRORS = (ValueError, TypeError, KeyError, IndexError, AttributeError)
+
+
+def state_error(exc: BaseException) -> ConfigError:
+    """A malformed learned state (KeyError, TypeError, ValueError, ...) as a one-line
+    ``init_from`` error; a :class:`ConfigError` keeps its own key in the message."""
+    if isinstance(exc, ConfigError) and exc.key == "init_from":
+        return exc
+    if isinstance(exc, KeyError):
+        text = f"missing entry {exc.args[0]!r}"
+    else:
+        text = str(exc) or type(exc).__name__
+    return ConfigError("init_from", "invalid learned state: " + " ".join(text.split()))
+
+
+def check_state_keys(state: Any, keys: Sequence[str]) -> None:
+    """``state`` must be a mapping with exactly ``keys`` (ConfigError ``init_from``)."""
+    if not isinstance(state, Mapping):
+        raise ConfigError(
+            "init_from", f"invalid learned state: expected a mapping, got {type(state).__name__}"
+        )
+    missing = [k for k in keys if k not in state]
+    unknown = sorted(str(k) for k in state if k not in keys)
+    if missing or unknown:
+        raise ConfigError(
+            "init_from",
+            f"invalid learned state: expected keys {', '.join(keys)}; "
+            f"missing {missing or 'none'}, unknown {unknown or 'none'}",
+        )

@@ -36,6 +36,7 @@ import numpy as np
 
 from ccm.control.avic import _OWN_KEYS as _AVIC_KEYS
 from ccm.control.avic import AVIC
+from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
 from ccm.control.impedance import FixedImpedance
 from ccm.errors import (
     ConfigError,
@@ -302,3 +303,57 @@ class ModalAVIC(AVIC):
         """Every mode's model gets the end-of-trial hook (modes persist across trials)."""
         for model in self.models.values():
             model.end_trial()
+
+    # ------------------------------------------------------------------ learned state
+
+    def learned_state(self) -> dict[str, Any]:
+        """The mode classifier, and per mode (``-1`` = free space) its forward model and the
+        number of samples it has been revised with (``min_mode_samples``). Batches, the
+        trigger and the current mode are per-trial state."""
+        return {
+            "classifier": self.classifier.to_dict(),
+            "modes": [
+                {"mode": m, "samples": self.samples[m], "forward_model": fm.state_dict()}
+                for m, fm in sorted(self.models.items())
+            ],
+        }
+
+    def load_learned_state(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`learned_state` output. Classifier and forward-model settings stay
+        this config's; the modes, their clusters, models and sample counts come from
+        ``state``. The current mode becomes free space.
+
+        Raises:
+            ConfigError: ``init_from``, on a malformed or mismatched state.
+        """
+        check_state_keys(state, ("classifier", "modes"))
+        try:
+            settings = self.classifier.to_dict()["settings"]
+            classifier = ModeClassifier.from_dict({**state["classifier"], "settings": settings})
+            models: dict[int, Any] = {}
+            samples: dict[int, int] = {}
+            for rec in state["modes"]:
+                check_state_keys(rec, ("mode", "samples", "forward_model"))
+                mode = rec["mode"]
+                if isinstance(mode, bool) or not isinstance(mode, int) or mode in models:
+                    raise ValueError(f"mode ids must be distinct integers, got {mode!r}")
+                fm = make_forward_model(dict(self._fm_cfg), self._fm_key)
+                fm.load_state_dict(rec["forward_model"])
+                models[mode] = fm
+                samples[mode] = check_int_nonneg(f"modes[{mode}].samples", rec["samples"])
+            n_features = len(feature_vector(1.0, 1.0, 1.0, self.feature))
+            if classifier.n_features_in_ not in (None, n_features):
+                raise ValueError(
+                    f"the saved modes have {classifier.n_features_in_} features, "
+                    f"modes.feature={self.feature} has {n_features}"
+                )
+            expected = [FREE, *range(classifier.n_modes)]
+            if sorted(models) != expected:
+                raise ValueError(
+                    f"modes {sorted(models)} do not match the classifier's {expected} "
+                    "(-1 = free space)"
+                )
+        except STATE_ERRORS as exc:
+            raise state_error(exc) from None
+        self.classifier, self.models, self.samples = classifier, models, samples
+        self._switch(FREE)

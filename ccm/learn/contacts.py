@@ -29,6 +29,7 @@ from ccm.errors import (
     ConfigError,
     check_choice,
     check_finite,
+    check_nonneg,
     check_positive,
     check_vector,
     constructor_kwargs,
@@ -152,19 +153,29 @@ class ContactBelief:
         dist = np.sqrt(np.sum(w * w, axis=0))
         return float(dist[0]) if pts.ndim == 1 else dist
 
-    def region_contains(self, x: Any, sigma_scale: float, name: str = "x") -> bool | np.ndarray:
-        """Whether x (one point or (N, d)) is in C: Mahalanobis distance <= ``sigma_scale``."""
+    def region_contains(
+        self, x: Any, sigma_scale: float, name: str = "x", min_radius: float = 0.0
+    ) -> bool | np.ndarray:
+        """Whether x (one point or (N, d)) is in C: Mahalanobis distance <= ``sigma_scale``.
+
+        ``min_radius`` [m] floors C's semi-axes: the distance is taken with P + (r/s)² I, so C
+        never shrinks below a ball of radius r however certain the belief becomes.
+        """
         s = check_positive(f"{self.key}.sigma_scale", sigma_scale)
-        inside = np.asarray(self.mahalanobis(x, name=name)) <= s
+        r = check_nonneg(f"{self.key}.min_radius", min_radius)
+        cov = None if r == 0.0 else self.cov + (r / s) ** 2 * np.eye(self.dim)
+        inside = np.asarray(self.mahalanobis(x, cov=cov, name=name)) <= s
         return bool(inside) if inside.ndim == 0 else inside
 
-    def first_entry(self, path_points: Any, sigma_scale: float) -> int | None:
+    def first_entry(
+        self, path_points: Any, sigma_scale: float, min_radius: float = 0.0
+    ) -> int | None:
         """Index of the first point of a sampled path (N, d) inside C (p_c of §3.5), or None.
 
         Only samples are tested: space them more finely than the smallest semi-axis of C,
         ``sigma_scale * axes_std[0]``, or a path that crosses C between samples is missed.
         """
-        inside = self.region_contains(path_points, sigma_scale, name="path_points")
+        inside = self.region_contains(path_points, sigma_scale, "path_points", min_radius)
         hits = np.flatnonzero(np.atleast_1d(inside))
         return int(hits[0]) if hits.size else None
 

@@ -13,12 +13,16 @@ suits speeds in m/s and forces in N alike.
 * :class:`IncrementalForwardModel` — IGMM revised at every step (seed A's model).
 * :class:`FrozenGMMForwardModel` — scikit-learn ``GaussianMixture`` fit once on the first
   ``fit_steps`` points, then frozen (seed A §4.1's fixed-GMM baseline).
+
+Both save what they learned with ``state_dict()`` (JSON-safe) and take it back with
+``load_state_dict()`` on a model built from the config: the settings stay the config's, the
+kind and feature scale must match.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -54,6 +58,23 @@ def _check_scale(scale: Sequence[float], key: str) -> np.ndarray:
     for i, v in enumerate(arr):
         check_positive(f"{key}[{i}]", v)
     return arr
+
+
+def _check_state(data: Mapping[str, Any], kind: str, scale: np.ndarray) -> None:
+    """A saved forward model must be of this config's ``kind`` and feature scale (its numbers
+    are in the scaled units)."""
+    if not isinstance(data, Mapping):
+        raise ValueError(f"forward model state must be a mapping, got {type(data).__name__}")
+    if data.get("kind") != kind:
+        raise ValueError(
+            f"the saved forward model is kind {data.get('kind')!r}, this config's is {kind!r}"
+        )
+    saved = np.asarray(data.get("feature_scale"), dtype=float)
+    if saved.shape != scale.shape or not np.array_equal(saved, scale):
+        raise ValueError(
+            f"the saved forward model has feature_scale {data.get('feature_scale')!r}, "
+            f"this config's is {scale.tolist()!r}"
+        )
 
 
 class IncrementalForwardModel:
@@ -102,6 +123,31 @@ class IncrementalForwardModel:
     @property
     def n_components(self) -> int:
         return int(self.model.n_components_)
+
+    def state_dict(self) -> dict[str, Any]:
+        """JSON-safe learned state: kind, feature scale and the IGMM snapshot
+        (:meth:`ccm.learn.igmm.IGMM.to_dict`)."""
+        return {"kind": "igmm", "feature_scale": self.scale.tolist(), "igmm": self.model.to_dict()}
+
+    def load_state_dict(self, data: Mapping[str, Any]) -> None:
+        """Take the components of a :meth:`state_dict`; the IGMM settings stay this model's.
+
+        Raises:
+            ValueError: another kind or feature scale, or a malformed or foreign snapshot
+                (e.g. more components than this config's ``max_components``).
+        """
+        from ccm.learn.igmm import IGMM
+
+        _check_state(data, "igmm", self.scale)
+        snap = data.get("igmm")
+        if not isinstance(snap, Mapping):
+            raise ValueError("forward model state: igmm must be a mapping")
+        try:
+            model = IGMM.from_dict({**snap, "params": self.model.get_params()}, key=self.model.key)
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from None
+        self.model = model
+        self._gmr = model.conditional(IN_IDX, OUT_IDX)
 
 
 class FrozenGMMForwardModel:
@@ -176,6 +222,51 @@ class FrozenGMMForwardModel:
 
     def end_trial(self) -> None:
         """Nothing to do: the model is frozen after its window."""
+
+    def state_dict(self) -> dict[str, Any]:
+        """JSON-safe learned state: the collected points before the fit, the mixture after."""
+        fitted = None
+        if self._params is not None:
+            w, mu, cov = self._params
+            fitted = {"weights": w.tolist(), "means": mu.tolist(), "covariances": cov.tolist()}
+        return {
+            "kind": "fixed_gmm",
+            "feature_scale": self.scale.tolist(),
+            "points": self._buf[: self._n].tolist() if self._params is None else [],
+            "fitted": fitted,
+        }
+
+    def load_state_dict(self, data: Mapping[str, Any]) -> None:
+        """Take the points or the fitted mixture of a :meth:`state_dict`. Points that already
+        fill this config's ``fit_steps`` window are fit now.
+
+        Raises:
+            ValueError: another kind or feature scale, or malformed arrays.
+        """
+        from ccm.learn.gmr import GMRConditional
+
+        _check_state(data, "fixed_gmm", self.scale)
+        fitted = data.get("fitted")
+        if fitted is not None:
+            if not isinstance(fitted, Mapping):
+                raise ValueError("forward model state: fitted must be a mapping or null")
+            params = tuple(
+                np.asarray(fitted[k], dtype=float) for k in ("weights", "means", "covariances")
+            )
+            gmr = GMRConditional(*params, IN_IDX, OUT_IDX)  # validates the mixture
+            self._params, self._gmr = params, gmr  # type: ignore[assignment]
+            self._buf = np.empty((0, N_STATE + N_EFFECT))
+            self._n = self.fit_steps
+            return
+        pts = np.asarray(data.get("points"), dtype=float).reshape(-1, N_STATE + N_EFFECT)
+        if not np.all(np.isfinite(pts)):
+            raise ValueError("forward model state: points must be finite")
+        n = min(len(pts), self.fit_steps)
+        self._buf = np.empty((self.fit_steps, N_STATE + N_EFFECT))
+        self._buf[:n] = pts[:n]
+        self._n, self._params = n, None
+        if n == self.fit_steps:
+            self._fit()
 
 
 FORWARD_MODELS = {"igmm": IncrementalForwardModel, "fixed_gmm": FrozenGMMForwardModel}

@@ -8,7 +8,7 @@ plain mapping; the simulator validates it. This module must not import ``ccm.sim
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -36,7 +36,8 @@ TASK_KEYS: tuple[str, ...] = (
 _REQUIRED = ("name", "dim", "start", "scene", "pattern")
 #: Kinds of expected contact (seed A §3.3): a collision, or a change of surface without impact.
 CONTACT_KINDS: tuple[str, ...] = ("collision", "impactless")
-_CONTACT_KEYS = ("name", "position", "kind")
+_CONTACT_KEYS = ("name", "position", "kind", "segment", "normal")
+_CONTACT_REQUIRED = ("name", "position", "kind")
 
 
 @dataclass
@@ -58,6 +59,15 @@ class Task:
             Table 1): nominal positions a controller may use (noise is added elsewhere, from a
             seeded generator), never ground truth, which stays in the scene. The mapping form
             is what :meth:`ccm.learn.contacts.ContactMap.from_config` takes.
+        contact_annotations: one dict per entry of ``contacts`` (same order) with the optional
+            keys ``segment`` and ``normal`` of that entry, for metrics (seed A §4.5.1, Fig. 16;
+            :mod:`ccm.contact_metrics`): ``{"segment": name or None, "segment_index": index of
+            that segment in ``pattern`` or None, "normal": unit tuple of dim floats or None}``.
+            ``normal`` is the outward surface normal, i.e. the direction of the contact force
+            on the end-effector; ``segment`` names the pattern segment during which the
+            contact is made. They are kept apart from ``contacts`` so that what a controller
+            is told stays the vision stand-in (``ContactMap.from_config`` takes only
+            ``name``, ``position`` and ``kind``).
     """
 
     name: str
@@ -68,6 +78,7 @@ class Task:
     description: str = ""
     params: dict[str, Any] = field(default_factory=dict)
     contacts: tuple[dict[str, Any], ...] = ()
+    contact_annotations: tuple[dict[str, Any], ...] = ()
 
     @property
     def duration(self) -> float:
@@ -99,27 +110,67 @@ def _required_and_name(key: str, cfg: Mapping[str, Any], required: tuple[str, ..
     return name
 
 
-def _load_contacts(key: str, value: Any, dim: int) -> tuple[dict[str, Any], ...]:
-    """Validate the optional ``contacts`` list (see :class:`Task`); errors name the entry."""
+def _segment_index(key: str, value: Any, segment_names: Sequence[str | None]) -> int:
+    """Index of the pattern segment named ``value`` (it must name exactly one segment)."""
+    if not isinstance(value, str) or not value:
+        raise ConfigError(key, f"must be a non-empty segment name, got {value!r}")
+    hits = [i for i, n in enumerate(segment_names) if n == value]
+    named = ", ".join(repr(n) for n in segment_names if n)
+    if not hits:
+        raise ConfigError(key, f"unknown pattern segment {value!r}; segments: {named or 'none'}")
+    if len(hits) > 1:
+        raise ConfigError(key, f"segment name {value!r} names {len(hits)} pattern segments")
+    return hits[0]
+
+
+def _unit_normal(key: str, value: Any, dim: int) -> tuple[float, ...]:
+    """A nonzero ``dim``-vector, normalised."""
+    n = check_vector(key, value, dim)
+    norm = float(np.linalg.norm(n))
+    if norm < 1e-12:
+        raise ConfigError(key, f"must be a nonzero vector, got {n.tolist()}")
+    return tuple(float(v) for v in n / norm)
+
+
+def _load_contacts(
+    key: str, value: Any, dim: int, segment_names: Sequence[str | None] = ()
+) -> tuple[tuple[dict[str, Any], ...], tuple[dict[str, Any], ...]]:
+    """Validate the optional ``contacts`` list (see :class:`Task`); errors name the entry.
+
+    Returns ``(contacts, contact_annotations)``; ``segment_names`` are the names of the
+    pattern's segments (None for an unnamed one), against which ``segment`` is checked.
+    """
     if value is None:
-        return ()
+        return (), ()
     if isinstance(value, str | bytes | Mapping) or not isinstance(value, list | tuple):
         raise ConfigError(key, f"must be a list of {{{', '.join(_CONTACT_KEYS)}}}, got {value!r}")
     out: list[dict[str, Any]] = []
+    notes: list[dict[str, Any]] = []
     seen: set[str] = set()
     for i, entry in enumerate(value):
         k = f"{key}[{i}]"
         if not isinstance(entry, Mapping):
             raise ConfigError(k, f"must be a mapping with keys {', '.join(_CONTACT_KEYS)}")
         _check_keys(k, entry, _CONTACT_KEYS)
-        name = _required_and_name(k, entry, _CONTACT_KEYS)
+        name = _required_and_name(k, entry, _CONTACT_REQUIRED)
         if name in seen:
             raise ConfigError(f"{k}.name", f"duplicate contact name {name!r}")
         seen.add(name)
         position = check_vector(f"{k}.position", entry["position"], dim)
         kind = check_choice(f"{k}.kind", entry["kind"], CONTACT_KINDS)
         out.append({"name": name, "position": tuple(float(v) for v in position), "kind": kind})
-    return tuple(out)
+        segment = entry.get("segment")
+        normal = entry.get("normal")
+        notes.append(
+            {
+                "segment": None if segment is None else str(segment),
+                "segment_index": None
+                if segment is None
+                else _segment_index(f"{k}.segment", segment, segment_names),
+                "normal": None if normal is None else _unit_normal(f"{k}.normal", normal, dim),
+            }
+        )
+    return tuple(out), tuple(notes)
 
 
 def load_task(
@@ -161,13 +212,15 @@ def load_task(
     params = cfg.get("params") or {}
     if not isinstance(params, Mapping):
         raise ConfigError(f"{key}.params", f"must be a mapping, got {type(params).__name__}")
-    contacts = _load_contacts(f"{key}.contacts", cfg.get("contacts"), dim)
     orientation = cfg.get("orientation")
     if orientation is not None:
         check_vector(f"{key}.orientation", orientation, 1 if dim == 2 else 4)
 
     pattern = build_pattern(
         cfg["pattern"], start, control_dt, key=f"{key}.pattern", orientation=orientation
+    )
+    contacts, notes = _load_contacts(
+        f"{key}.contacts", cfg.get("contacts"), dim, [s.name for s in pattern.segments]
     )
     return Task(
         name=name,
@@ -178,4 +231,5 @@ def load_task(
         description=description,
         params=dict(params),
         contacts=contacts,
+        contact_annotations=notes,
     )

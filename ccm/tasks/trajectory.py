@@ -44,6 +44,7 @@ __all__ = [
     "MotionPattern",
     "Segment",
     "build_pattern",
+    "arrive_at_speed",
     "min_jerk",
 ]
 
@@ -68,6 +69,24 @@ def min_jerk(tau: Any, duration: float) -> tuple[Any, Any, Any]:
     s = tau2 * tau * (10.0 + tau * (6.0 * tau - 15.0))
     sd = 30.0 * tau2 * one_minus * one_minus / duration
     sdd = 60.0 * tau * one_minus * (1.0 - 2.0 * tau) / (duration * duration)
+    return s, sd, sdd
+
+
+def arrive_at_speed(tau: Any, duration: float, w: float) -> tuple[Any, Any, Any]:
+    """Quintic time scaling that starts at rest and *arrives* at normalised speed ``w``.
+
+    s(0) = ṡ(0) = s̈(0) = 0, s(1) = 1, ds/dτ(1) = w, s̈(1) = 0:
+    s(τ) = (10 − 4w) τ³ + (7w − 15) τ⁴ + (6 − 3w) τ⁵; w = 0 is :func:`min_jerk`. For
+    0 ≤ w ≤ 2 it never moves backwards.
+
+    Returns:
+        ``(s, ds/dt, d²s/dt²)`` as :func:`min_jerk`.
+    """
+    a3, a4, a5 = 10.0 - 4.0 * w, 7.0 * w - 15.0, 6.0 - 3.0 * w
+    tau2 = tau * tau
+    s = tau2 * tau * (a3 + tau * (a4 + tau * a5))
+    sd = tau2 * (3.0 * a3 + tau * (4.0 * a4 + tau * 5.0 * a5)) / duration
+    sdd = tau * (6.0 * a3 + tau * (12.0 * a4 + tau * 20.0 * a5)) / (duration * duration)
     return s, sd, sdd
 
 
@@ -164,12 +183,16 @@ class Segment(ABC):
 
 
 class LineSegment(Segment):
-    """Straight line from ``start`` to ``end`` with minimum-jerk timing.
+    """Straight line from ``start`` to ``end`` with minimum-jerk timing, or, with
+    ``end_speed`` > 0, a quintic that arrives at ``end`` still moving at that speed
+    (:func:`arrive_at_speed`): a move *into* a surface whose position is not known exactly,
+    meeting it at the planned speed (seed A §4.5.1, the approach without contact handling).
 
     Args:
         start, end: endpoints, world frame [m], same length n (2 or 3).
         duration: T [s].
         force_dir, force_mag, name, key: see :class:`Segment`.
+        end_speed: speed at ``end`` [m/s], 0 ≤ end_speed ≤ 2 |end − start| / T.
     """
 
     def __init__(
@@ -181,21 +204,37 @@ class LineSegment(Segment):
         force_mag: float = 0.0,
         name: str | None = None,
         *,
+        end_speed: float = 0.0,
         key: str = "segment",
     ) -> None:
         p0 = check_vector(f"{key}.start", start, (2, 3))
         p1 = check_vector(f"{key}.to", end, p0.shape[0])
         super().__init__(duration, p0.shape[0], force_dir, force_mag, name, key)
+        length = float(np.linalg.norm(p1 - p0))
+        end_speed = check_nonneg(f"{key}.end_speed", end_speed)
+        if end_speed > 0.0 and end_speed > 2.0 * length / self.duration:
+            raise ConfigError(
+                f"{key}.end_speed",
+                f"must be <= 2 x length / duration = {2.0 * length / self.duration:.4g} m/s "
+                f"(the line would move backwards), got {end_speed}",
+            )
+        self.end_speed = end_speed
+        self._w = end_speed * self.duration / length if end_speed > 0.0 else 0.0
         # pos = (1 - s) p0 + s p1 is exact at both ends (s = 0 and s = 1 are exact floats).
         self._basis = np.stack([p0, p1])
         self._finish()
 
+    def _scaling(self, tau: Any) -> tuple[Any, Any, Any]:
+        if self._w == 0.0:
+            return min_jerk(tau, self.duration)
+        return arrive_at_speed(tau, self.duration, self._w)
+
     def _coeffs(self, t_local: float) -> list[list[float]]:
-        s, sd, sdd = min_jerk(t_local / self.duration, self.duration)
+        s, sd, sdd = self._scaling(t_local / self.duration)
         return [[1.0 - s, s], [-sd, sd], [-sdd, sdd]]
 
     def _coeffs_many(self, t_local: np.ndarray) -> np.ndarray:
-        s, sd, sdd = min_jerk(t_local / self.duration, self.duration)
+        s, sd, sdd = self._scaling(t_local / self.duration)
         rows = [np.stack([1.0 - s, s], -1), np.stack([-sd, sd], -1), np.stack([-sdd, sdd], -1)]
         return np.stack(rows, 1)
 
@@ -474,7 +513,7 @@ class MotionPattern:
 _TYPES = ("line", "arc", "hold")
 _COMMON_KEYS = ("type", "duration", "steps", "force", "name")
 _TYPE_KEYS: dict[str, tuple[str, ...]] = {
-    "line": ("to",),
+    "line": ("to", "end_speed"),
     "arc": ("center", "sweep_deg", "normal"),
     "hold": (),
 }
@@ -530,7 +569,7 @@ def build_pattern(
 
     Each segment starts where the previous one ended (the first at ``start``). Entries::
 
-        {type: line, to: [x, y(, z)], duration: 1.0}
+        {type: line, to: [x, y(, z)], duration: 1.0}   # optional end_speed [m/s]
         {type: arc, center: [...], sweep_deg: 360, duration: 6.0}   # 3D: optional normal
         {type: hold, duration: 0.5}
 
@@ -581,8 +620,9 @@ def build_pattern(
         seg: Segment
         if kind == "line":
             seg = LineSegment(
-                p, _require(k, entry, "to"), duration, force_dir, force_mag, name, key=k
-            )
+                p, _require(k, entry, "to"), duration, force_dir, force_mag, name,
+                end_speed=entry.get("end_speed", 0.0), key=k,
+            )  # fmt: skip
         elif kind == "arc":
             normal = entry.get("normal")
             if normal is not None and dim == 2:

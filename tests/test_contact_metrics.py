@@ -1,0 +1,236 @@
+"""H4 collision metrics and the Fig. 16 figure (seed A §4.5.1, issue #5): synthetic logs."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from ccm.contact_metrics import contact_metrics
+from ccm.errors import ConfigError
+from ccm.metrics import EXTRA_METRICS, compute_extra_metrics, derivatives
+from ccm.plots import write_figures
+from ccm.tasks.task import load_task
+
+DT = 0.001
+T_HIT = 0.3  # s, the tool meets the surface
+PARAMS: dict[str, Any] = {
+    "lowpass_hz": 30.0,
+    "impact_onset_N": 1.0,
+    "impact_window_s": 0.05,
+    "impact_acc_window_s": [-0.05, 0.2],
+}
+TABLE = {
+    "name": "table", "kind": "collision", "position": (0.0, 0.0, 0.1), "segment_index": 0,
+    "normal": (0.0, 0.0, 1.0),
+}  # fmt: skip
+
+
+def drop_log(n: int = 1000, controller: bool = False) -> dict[str, np.ndarray]:
+    """A tool moving down at 0.1 m/s hits a surface at T_HIT: an 8 N pulse for 10 ms, then 2 N.
+
+    Segment 0 until 0.5 s, segment 1 after. ``controller`` adds the anticipation signals.
+    """
+    t = np.arange(n) * DT
+    hit = t >= T_HIT - 1e-12
+    vz = np.where(hit, 0.0, -0.1)
+    fz = np.where(hit, 2.0, 0.0)
+    fz[(t >= T_HIT - 1e-12) & (t < T_HIT + 0.01 - 1e-12)] = 8.0
+    zeros = np.zeros(n)
+    log = {
+        "t": t,
+        "segment": np.where(t < 0.5 - 1e-12, 0.0, 1.0),
+        "vel_x": zeros,
+        "vel_y": zeros,
+        "vel_z": vz,
+        "pos_x": zeros,
+        "pos_y": zeros,
+        "pos_z": np.where(hit, 0.1, 0.1 + 0.1 * (T_HIT - t)),  # m: reaches z = 0.1 at T_HIT
+        "true_force_x": zeros,
+        "true_force_y": 0.3 * np.ones(n),  # off-normal force: ignored by n·F
+        "true_force_z": fz,
+    }
+    if controller:
+        alpha = np.zeros(n)
+        alpha[200:350] = 0.5  # 0.15 s of transition phase
+        event = np.zeros(n)
+        event[[302, 700]] = [1.0, 2.0]
+        log.update(transition_alpha=alpha, collision_event=event, pattern_rate=np.ones(n))
+    return log
+
+
+def test_onset_impact_force_and_acceleration() -> None:
+    log = drop_log()
+    out = contact_metrics(log, 3, {**PARAMS, "task_contacts": [TABLE]})
+    k = int(round(T_HIT / DT))
+    assert out["contact_time_s_table"] == pytest.approx(T_HIT)
+    assert out["impact_force_N_table"] == pytest.approx(8.0)
+    assert out["peak_impact_force_N"] == pytest.approx(8.0)
+    vel = np.column_stack([log["vel_x"], log["vel_y"], log["vel_z"]])
+    acc = np.linalg.norm(derivatives(vel, DT, 30.0)[0], axis=1)
+    expected = float(np.max(acc[k - 50 : k + 201]))
+    assert out["impact_acc_mps2_table"] == pytest.approx(expected)
+    assert out["peak_impact_acc_mps2"] == pytest.approx(expected)
+    # a 0.1 m/s stop through a 30 Hz first-order filter: peak ≈ 0.1 m/s × 2π·30 Hz / e-ish
+    assert 5.0 < expected < 0.1 * 2 * np.pi * 30.0
+    assert out["transition_time_s"] == 0.0  # no transition_alpha column: no contact handling
+    assert out["n_collision_events"] is None
+    assert all(v is None or type(v) is float for v in out.values())
+
+
+def test_onset_is_a_rise_over_the_segment_start_level() -> None:
+    log = drop_log()
+    log["true_force_z"] = log["true_force_z"] + 5.0  # a constant press from the start
+    out = contact_metrics(log, 3, {**PARAMS, "task_contacts": [TABLE]})
+    assert out["contact_time_s_table"] == pytest.approx(T_HIT)
+    assert out["impact_force_N_table"] == pytest.approx(13.0)
+    out = contact_metrics(log, 3, {**PARAMS, "impact_onset_N": 9.0, "task_contacts": [TABLE]})
+    assert out["contact_time_s_table"] is None
+    assert out["impact_force_N_table"] is None
+    assert out["peak_impact_force_N"] is None
+
+
+def test_controller_signals_and_stable_keys() -> None:
+    wall = {
+        "name": "wall", "kind": "collision", "position": (0.5, 0.0, 0.1), "segment_index": 1,
+        "normal": (-1.0, 0, 0),
+    }  # fmt: skip
+    skipped = [
+        {"name": "patch", "kind": "impactless", "segment_index": 0, "normal": (0.0, 0.0, 1.0)},
+        {"name": "nosegment", "kind": "collision", "segment_index": None, "normal": (0, 0, 1)},
+    ]
+    contacts = [TABLE, wall, *skipped]
+    out = contact_metrics(drop_log(controller=True), 3, {**PARAMS, "task_contacts": contacts})
+    assert out["transition_time_s"] == pytest.approx(0.15)
+    assert out["n_collision_events"] == 2.0
+    assert out["contact_time_s_wall"] is None  # no force along -x in segment 1
+    assert not any("patch" in k or "nosegment" in k for k in out)
+    # a trial cut before segment 1 gives the same keys, with None
+    short = contact_metrics(drop_log(400), 3, {**PARAMS, "task_contacts": contacts})
+    assert set(short) == set(out)
+    assert short["impact_force_N_wall"] is None
+    assert short["impact_force_N_table"] == pytest.approx(8.0)
+
+
+def test_search_stops_at_the_next_contacts_segment() -> None:
+    log = drop_log()
+    log["segment"] = np.where(log["t"] < 0.2, 0.0, 1.0)  # the hit happens in segment 1
+    second = dict(TABLE, name="second", segment_index=1)
+    out = contact_metrics(log, 3, {**PARAMS, "task_contacts": [TABLE, second]})
+    assert out["contact_time_s_table"] is None
+    assert out["contact_time_s_second"] == pytest.approx(T_HIT)
+
+
+def test_registered_and_task_contacts_reach_the_metric() -> None:
+    assert EXTRA_METRICS["contacts"] is contact_metrics
+    task = load_task(TASK, 0.001)
+    comp = SimpleNamespace(task=task)
+    cfg = SimpleNamespace(metrics=PARAMS)
+    out = compute_extra_metrics(["contacts"], drop_log(), comp, cfg)
+    assert out["contact_time_s_floor"] == pytest.approx(T_HIT)
+    assert out["impact_force_N_floor"] == pytest.approx(8.0)
+
+
+TASK: dict[str, Any] = {
+    "name": "t",
+    "dim": 3,
+    "start": [0.0, 0.0, 0.1],
+    "orientation": [1.0, 0.0, 0.0, 0.0],
+    "scene": {},
+    "pattern": [
+        {"type": "line", "name": "down", "to": [0.0, 0.0, 0.0], "duration": 0.5},
+        {"type": "hold", "name": "press", "duration": 0.5},
+    ],
+    "contacts": [
+        {
+            "name": "floor",
+            "position": [0.0, 0.0, 0.1],
+            "kind": "collision",
+            "segment": "down",
+            "normal": [0.0, 0.0, 2.0],
+        },
+        {"name": "patch", "position": [0.0, 0.0, 0.0], "kind": "impactless"},
+    ],
+}
+
+
+def test_task_contact_fields_load() -> None:
+    task = load_task(TASK, 0.001)
+    assert task.contacts[0] == {"name": "floor", "position": (0.0, 0.0, 0.1), "kind": "collision"}
+    assert task.contact_annotations == (
+        {"segment": "down", "segment_index": 0, "normal": (0.0, 0.0, 1.0)},
+        {"segment": None, "segment_index": None, "normal": None},
+    )
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "fragment"),
+    [
+        ("normal", [0.0, 0.0, 0.0], "nonzero"),
+        ("normal", [0.0, 1.0], "length 3"),
+        ("segment", "nope", "unknown pattern segment 'nope'"),
+        ("segment", 3, "segment name"),
+    ],
+)
+def test_bad_contact_fields(key: str, value: Any, fragment: str) -> None:
+    cfg = copy.deepcopy(TASK)
+    cfg["contacts"][0][key] = value
+    with pytest.raises(ConfigError, match=fragment) as err:
+        load_task(cfg, 0.001)
+    assert err.value.key == f"task.contacts[0].{key}"
+
+
+def test_h4_tasks_annotate_every_collision(composer: Any) -> None:
+    for name in ("h4_collisions", "h4_contact_learning"):
+        task = load_task(composer([f"task={name}"]).task, 0.001)
+        for c, a in zip(task.contacts, task.contact_annotations, strict=True):
+            if c["kind"] == "collision":
+                assert a["segment_index"] is not None and a["normal"] is not None, c["name"]
+
+
+def plot_log(controller: bool = False) -> dict[str, np.ndarray]:
+    """:func:`drop_log` plus the columns every run figure reads."""
+    log = drop_log(controller=controller)
+    n = len(log["t"])
+    for a in "xyz":
+        for p in ("pos", "target_pos", "target_vel", "force_dir"):
+            log[f"{p}_{a}"] = np.zeros(n)
+        log[f"force_{a}"] = log[f"true_force_{a}"]
+    log["stiffness_Npm"] = np.full(n, 300.0)
+    return log
+
+
+def test_contact_figures_written(tmp_path: Path) -> None:
+    comps = {n: SimpleNamespace(task=SimpleNamespace(dim=3)) for n in ("full", "baseline")}
+    logs = {"full": [plot_log(True), plot_log(True)], "baseline": [plot_log(), plot_log()]}
+    trials = [
+        {"condition": c, "trial": k, "transition_time_s": 0.1}
+        for c in ("full", "baseline")
+        for k in (1, 2)
+    ]
+    written = write_figures(tmp_path, comps, logs, {"lowpass_hz": 30.0}, trials)
+    names = {p.name for p in written}
+    assert {"contact_transitions.png", "contact_transitions_last.png"} <= names
+    assert (tmp_path / "contact_transitions.png").stat().st_size > 0
+    assert (tmp_path / "contact_transitions_last.png").stat().st_size > 0
+
+
+def test_no_contact_figures_outside_h4(tmp_path: Path) -> None:
+    comps = {"fixed": SimpleNamespace(task=SimpleNamespace(dim=3))}
+    written = write_figures(tmp_path, comps, {"fixed": [plot_log()]}, {"lowpass_hz": 30.0})
+    assert written
+    assert not (tmp_path / "contact_transitions.png").exists()
+
+
+def test_onset_search_starts_near_the_surface() -> None:
+    """A force rise along the normal while the tool is still far from the surface (friction
+    building up as a slide starts) is not the onset (``impact_near_m``)."""
+    log = drop_log()
+    far = (log["t"] >= 0.05) & (log["t"] < 0.25)  # 2.5-2 cm above the surface
+    log["true_force_z"] = log["true_force_z"] + np.where(far, 1.5, 0.0)
+    out = contact_metrics(log, 3, {**PARAMS, "task_contacts": [TABLE], "impact_near_m": 0.01})
+    assert out["contact_time_s_table"] == pytest.approx(T_HIT)
