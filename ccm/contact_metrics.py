@@ -41,6 +41,33 @@ Definitions (one trial; step k is one control step, ``t[k]`` its time, dt the me
   (the controller flags one step per event, so this is the number of events); None when the
   column is absent.
 
+Beliefs (``controller_report``, :meth:`ccm.control.base.Controller.report`, taken after the
+trial and before the controller's end-of-trial update; a controller without contact beliefs
+gives None for all of these), for every contact of the task, matched by name:
+
+* ``contact_error_m_<name>`` = ‖belief mean − the task's nominal (true) position‖ (seed A
+  Table 1 gives the error along the most significant axis; the norm is never smaller);
+* ``contact_std_m_<name>`` = the largest standard deviation along an axis of the belief (the
+  ± of Table 1);
+* ``contact_prior_error_m_<name>`` / ``contact_prior_std_m_<name>``: the same for the belief
+  the trial started from (trial 1: the noisy initial estimate, Table 1's "Initial");
+* ``approach_velocity_mps_<name>`` / ``measured_impact_force_N_<name>``: for a collision
+  whose Eq. 9 model was updated this trial, the commanded approach speed and the impact force
+  F_m the controller measured (its F/T sensor, not the truth);
+* ``n_contacts_learned``: contacts the controller added itself (first seen in a trial).
+
+Impact-less transitions (seed A §4.5.2, Figs 19-20), for every task contact of kind
+``impactless`` (its position: where the tool point crosses onto the new surface):
+
+* **Patch window**: the steps at which the tool point is within ``patch_window_m`` of that
+  position.
+* ``patch_peak_acc_mps2_<name>`` / ``patch_peak_jerk_mps3_<name>`` = max ‖a‖ / ‖j‖ over the
+  window, from the measured velocity through :func:`ccm.metrics.derivatives` (None if the
+  tool never comes that close);
+* ``region_m_<name>`` = ``region_m`` (largest semi-axis of region C) of the controller's
+  impact-less belief nearest to that position, if one lies within ``patch_window_m`` (the
+  region it anticipates there), else None: the region size per trial of Fig. 20.
+
 Every value is a plain float or None, and the keys are the same every trial of a task (a
 missing onset gives None, not a missing key). ``completion_time_s``, ``peak_acc_mps2`` and
 ``rms_jerk_mps3`` come from :func:`ccm.metrics.trial_metrics` and are not repeated here.
@@ -155,6 +182,8 @@ def contact_metrics(
     out["peak_impact_force_N"] = max(impact_f) if impact_f else None
     out["peak_impact_acc_mps2"] = max(impact_a) if impact_a else None
 
+    out.update(_belief_metrics(params.get("task_contacts") or (), params.get("controller_report")))
+    out.update(_patch_metrics(log, dim, params))
     alpha = log.get("transition_alpha")
     out["transition_time_s"] = (
         float(np.count_nonzero(np.asarray(alpha) > 0.0) * dt) if alpha is not None else 0.0
@@ -165,4 +194,104 @@ def contact_metrics(
     else:
         on = np.asarray(event, dtype=float) > 0.0
         out["n_collision_events"] = float(np.count_nonzero(on[1:] & ~on[:-1]) + int(on[:1].sum()))
+    return out
+
+
+def _belief_metrics(
+    task_contacts: Sequence[Mapping[str, Any]], report: Mapping[str, Any] | None
+) -> dict[str, float | None]:
+    """The belief metrics of the module docstring."""
+    beliefs = {b["name"]: b for b in (report or {}).get("contacts", [])}
+    out: dict[str, float | None] = {}
+    for c in task_contacts:
+        name = str(c["name"])
+        b = beliefs.get(name)
+        err = std = v = f = err0 = std0 = None
+        if b is not None and b.get("prior_mean") is not None:
+            err0 = float(np.linalg.norm(np.asarray(b["prior_mean"]) - np.asarray(c["position"])))
+            std0 = float(b["prior_std"])
+        if b is not None:
+            err = float(np.linalg.norm(np.asarray(b["mean"]) - np.asarray(c["position"])))
+            std = float(b["std"])
+            v = None if b.get("approach_velocity") is None else float(b["approach_velocity"])
+            f = None if b.get("impact_force") is None else float(b["impact_force"])
+        out[f"contact_error_m_{name}"] = err
+        out[f"contact_std_m_{name}"] = std
+        out[f"contact_prior_error_m_{name}"] = err0
+        out[f"contact_prior_std_m_{name}"] = std0
+        out[f"approach_velocity_mps_{name}"] = v
+        out[f"measured_impact_force_N_{name}"] = f
+    learned = [b for b in beliefs.values() if b.get("source") == "observed"]
+    out["n_contacts_learned"] = float(len(learned)) if report and "contacts" in report else None
+    return out
+
+
+def contact_table(trials: Sequence[Mapping[str, Any]]) -> str | None:
+    """Seed A Table 1 / §4.5.1 layout as markdown: per condition with contact beliefs, one row
+    per trial and contact (belief error and std, commanded approach speed, true and measured
+    impact force) and the trial's pattern and transition times. None if no trial has beliefs.
+    """
+    rows = []
+    for tr in trials:
+        names = [k[len("contact_error_m_") :] for k in tr if k.startswith("contact_error_m_")]
+        for n in names:
+            if tr.get(f"contact_error_m_{n}") is None:
+                continue
+            rows.append((tr, n))
+    if not rows:
+        return None
+
+    def f(v: Any, fmt: str) -> str:
+        return "–" if v is None else format(v, fmt)
+
+    lines = [
+        "| condition | trial | contact | error before [m] | std before [m] | error after [m] "
+        "| std after [m] | approach v [m/s] | impact F true [N] | F_m measured [N] "
+        "| pattern time [s] | transition time [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for tr, n in rows:
+        lines.append(
+            f"| {tr['condition']} | {tr['trial']} | {n} "
+            f"| {f(tr.get(f'contact_prior_error_m_{n}'), '.4f')} "
+            f"| {f(tr.get(f'contact_prior_std_m_{n}'), '.4f')} "
+            f"| {f(tr.get(f'contact_error_m_{n}'), '.4f')} "
+            f"| {f(tr.get(f'contact_std_m_{n}'), '.4f')} "
+            f"| {f(tr.get(f'approach_velocity_mps_{n}'), '.4f')} "
+            f"| {f(tr.get(f'impact_force_N_{n}'), '.1f')} "
+            f"| {f(tr.get(f'measured_impact_force_N_{n}'), '.1f')} "
+            f"| {f(tr.get('pattern_time_s'), '.2f')} | {f(tr.get('transition_time_s'), '.2f')} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _patch_metrics(
+    log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]
+) -> dict[str, float | None]:
+    """The impact-less (patch) metrics of the module docstring."""
+    from ccm.metrics import derivatives
+
+    near = check_positive("metrics.patch_window_m", params.get("patch_window_m", 0.03))
+    contacts = [c for c in params.get("task_contacts") or () if c.get("kind") == "impactless"]
+    if not contacts:
+        return {}
+    axes = "xyz"[:dim]
+    t = np.asarray(log["t"], dtype=float)
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    pos = np.column_stack([log[f"pos_{a}"] for a in axes])
+    vel = np.column_stack([log[f"vel_{a}"] for a in axes])
+    acc, jerk = derivatives(vel, dt, check_positive("metrics.lowpass_hz", params.get("lowpass_hz")))
+    acc_n, jerk_n = np.linalg.norm(acc, axis=1), np.linalg.norm(jerk, axis=1)
+    report = params.get("controller_report") or {}
+    beliefs = [b for b in report.get("contacts", []) if b.get("kind") == "impactless"]
+    out: dict[str, float | None] = {}
+    for c in contacts:
+        name, p = str(c["name"]), np.asarray(c["position"], dtype=float)
+        inside = np.linalg.norm(pos - p, axis=1) <= near
+        out[f"patch_peak_acc_mps2_{name}"] = float(acc_n[inside].max()) if inside.any() else None
+        out[f"patch_peak_jerk_mps3_{name}"] = float(jerk_n[inside].max()) if inside.any() else None
+        dist = [float(np.linalg.norm(np.asarray(b["mean"]) - p)) for b in beliefs]
+        k = int(np.argmin(dist)) if dist else -1
+        ok = k >= 0 and dist[k] <= near
+        out[f"region_m_{name}"] = float(beliefs[k]["region_m"]) if ok else None
     return out

@@ -211,12 +211,14 @@ def compute_extra_metrics(
     Each metric gets ``params`` = ``cfg.metrics`` plus ``task_contacts``: the task's expected
     contacts in pattern order, each ``{name, position, kind}`` merged with its annotations
     ``{segment, segment_index, normal}`` (:class:`ccm.tasks.task.Task`; used by ``contacts``,
-    :mod:`ccm.contact_metrics`, seed A §4.5.1).
+    :mod:`ccm.contact_metrics`, seed A §4.5.1) and ``controller_report``: what the controller
+    believes after the trial (:meth:`ccm.control.base.Controller.report`).
     """
     params = dict(cfg.metrics)
     task = comp.task
     notes = getattr(task, "contact_annotations", ()) or ({},) * len(task.contacts)
     params["task_contacts"] = [{**c, **a} for c, a in zip(task.contacts, notes, strict=True)]
+    params["controller_report"] = comp.controller.report() if hasattr(comp, "controller") else {}
     out: dict[str, float | None] = {}
     for name in names:
         out.update(EXTRA_METRICS[name](log, comp.task.dim, params))

@@ -9,6 +9,7 @@ import pytest
 
 from ccm.control.anticipation import AnticipatoryAVIC
 from ccm.errors import ConfigError
+from ccm.types import Observation, TargetSample
 
 CONTACT = [{"name": "mid", "position": [0.0, 0.08], "kind": "collision"}]  # on the approach
 
@@ -62,3 +63,100 @@ def test_bad_settings_name_the_key() -> None:
         AnticipatoryAVIC(anticipation={"bogus": 1})
     with pytest.raises(ConfigError, match="controller.anticipation.use_kinds"):
         AnticipatoryAVIC(anticipation={"use_kinds": ["vision"]})
+
+
+# ----------------------------------------------------------------- H4 mechanics (issue #5)
+
+THREE = [
+    {"name": "a", "position": [0.0, 0.00], "kind": "collision"},
+    {"name": "b", "position": [0.0, 0.05], "kind": "collision"},
+    {"name": "c", "position": [0.0, 0.10], "kind": "collision"},
+]
+
+
+def obs_at(t: float, pos=(0.0, 0.0), vel=(0.0, 0.0), force=(0.0, 0.0)) -> Observation:
+    z = np.zeros(1)
+    return Observation(t, np.array(pos, float), z, np.array(vel, float), z.copy(),
+                       np.array(force, float), z.copy())  # fmt: skip
+
+
+def test_collisions_are_associated_in_plan_order(pattern) -> None:
+    """Beliefs 2 cm wide and contacts 5 cm apart: a collision goes to the next contact in plan
+    order if it is within the association gate of it, a repeat to the contact already made,
+    and one beyond the gate of the next contact to no contact (nearest or new)."""
+    c = make(init_std=0.02, association_gate=5.0)
+    c.prepare(pattern, THREE, np.random.default_rng(0))
+    cm = c.contact_map
+    z = np.array([0.0, 0.04])  # nearer b, but a comes first and gates it (2.0 sigma)
+    assert c._in_sequence(z) == 0  # noqa: SLF001
+    cm.observe(z, "collision", expected=0)
+    assert c._in_sequence(np.array([0.0, 0.041])) == 0  # noqa: SLF001 - a repeat of a
+    assert c._in_sequence(np.array([0.0, 0.08])) == 1  # noqa: SLF001 - next: b
+    assert c._in_sequence(np.array([0.3, 0.3])) is None  # noqa: SLF001 - far from b
+
+
+def test_spike_across_the_commanded_motion_is_no_collision(pattern) -> None:
+    """A force jump while the tool moves across the planned motion (stick-slip along a wall)
+    or a force that does not act against the motion is not a collision ahead."""
+    from ccm.learn.collisions import CollisionEvent
+
+    c = make()
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    c._vel_hist.append((0.0, np.array([0.0, 0.05])))  # noqa: SLF001 - planned: along +y
+
+    def event(v_pre, f_m):
+        z2 = np.zeros(2)
+        return CollisionEvent(0.0, 0.0, 0.0, z2, np.array(v_pre, float), z2, f_m, f_m, f_m,
+                              0.0, 1.0)  # fmt: skip
+
+    assert c._approaching(event((0.0, 0.04), 8.0))  # noqa: SLF001
+    assert not c._approaching(event((0.04, 0.0), 8.0))  # noqa: SLF001 - across the motion
+    assert not c._approaching(event((0.0, 0.04), 1.0))  # noqa: SLF001 - below the jump
+
+
+def test_collision_and_impactless_weights_sum_to_at_most_one(pattern) -> None:
+    """Eq. 10 with two transition controllers: the collision weight takes precedence and the
+    stiffness blends continuously (no jump from K_max to K* when windows overlap)."""
+    from ccm.control.contact_events import TransitionWindow as _Window
+
+    c = make()
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    c._windows = [  # noqa: SLF001
+        _Window(0, "impactless", 0.0, 0.1, 10.0),
+        _Window(0, "collision", 0.2, 0.4, 10.0),
+    ]
+    tgt = pattern.sample(0.0)
+    k_prev = None
+    for t in np.arange(0.05, 0.5, 0.001):
+        c.step(obs_at(float(t), pos=tgt.position), tgt)
+        s = c.signals()
+        assert s["transition_alpha"] <= 1.0 + 1e-12
+        k = s["stiffness_Npm"]
+        if k_prev is not None and 0.2 < t < 0.4:
+            assert abs(k - k_prev) < 0.01 * (c.k_max - c.k_collision)  # no jump
+        k_prev = k
+    assert k_prev == pytest.approx(c.k_collision)  # collision window fully on
+
+
+def test_quasi_static_contact_needs_a_stall_and_a_force_rise(pattern) -> None:
+    """In an open collision window, a tool that stops while the plan moves on, with the force
+    against the motion up by the jump threshold, has made the contact; once per stall."""
+    from ccm.control.contact_events import TransitionWindow as _Window
+
+    c = make()
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    c._windows = [_Window(0, "collision", 0.0, 0.0, 10.0)]  # noqa: SLF001
+    moving = TargetSample(0.0, np.zeros(2), np.array([0.0, 0.03]), np.zeros(2), np.zeros(1))
+    fired = []
+    for k in range(400):
+        t = k * 0.001
+        stalled = t >= 0.1
+        force = (0.0, -6.0) if t >= 0.12 else (0.0, 0.0)  # pushes back once stalled
+        o = obs_at(t, vel=(0.0, 0.0 if stalled else 0.03), force=force)
+        c._vel_hist.append((t, moving.velocity))  # noqa: SLF001
+        c._force_hist.append((t, o.force.copy()))  # noqa: SLF001
+        if c._pressed(o, moving):  # noqa: SLF001
+            fired.append(t)
+            c._release(0, t)  # noqa: SLF001
+    assert len(fired) == 1
+    assert fired[0] == pytest.approx(0.1 + 2 * c.detector.peak_window_s, abs=0.002)

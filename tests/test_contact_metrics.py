@@ -100,7 +100,13 @@ def test_controller_signals_and_stable_keys() -> None:
         "normal": (-1.0, 0, 0),
     }  # fmt: skip
     skipped = [
-        {"name": "patch", "kind": "impactless", "segment_index": 0, "normal": (0.0, 0.0, 1.0)},
+        {
+            "name": "patch",
+            "kind": "impactless",
+            "position": (0.0, 0.0, 0.1),
+            "segment_index": 0,
+            "normal": (0.0, 0.0, 1.0),
+        },
         {"name": "nosegment", "kind": "collision", "segment_index": None, "normal": (0, 0, 1)},
     ]
     contacts = [TABLE, wall, *skipped]
@@ -108,7 +114,9 @@ def test_controller_signals_and_stable_keys() -> None:
     assert out["transition_time_s"] == pytest.approx(0.15)
     assert out["n_collision_events"] == 2.0
     assert out["contact_time_s_wall"] is None  # no force along -x in segment 1
-    assert not any("patch" in k or "nosegment" in k for k in out)
+    assert not any(k.startswith(("impact_", "contact_time")) and k.endswith(("patch", "nosegment"))
+                   for k in out)  # fmt: skip
+    assert out["contact_error_m_patch"] is None  # no beliefs reported: no belief metrics
     # a trial cut before segment 1 gives the same keys, with None
     short = contact_metrics(drop_log(400), 3, {**PARAMS, "task_contacts": contacts})
     assert set(short) == set(out)
@@ -234,3 +242,62 @@ def test_onset_search_starts_near_the_surface() -> None:
     log["true_force_z"] = log["true_force_z"] + np.where(far, 1.5, 0.0)
     out = contact_metrics(log, 3, {**PARAMS, "task_contacts": [TABLE], "impact_near_m": 0.01})
     assert out["contact_time_s_table"] == pytest.approx(T_HIT)
+
+
+def test_belief_metrics_from_the_controller_report() -> None:
+    """contact_error_m / contact_std_m / approach velocity from the controller's report,
+    matched by name against the task's nominal positions."""
+    report = {"contacts": [
+        {"name": "table", "kind": "collision", "source": "config", "mean": [0.0, 0.003, 0.1],
+         "std": 0.004, "approach_velocity": 0.02, "impact_force": 7.5},
+        {"name": "new5", "kind": "impactless", "source": "observed", "mean": [0.2, 0.0, 0.1],
+         "std": 0.01, "approach_velocity": None, "impact_force": None},
+    ]}  # fmt: skip
+    out = contact_metrics(
+        drop_log(), 3, {**PARAMS, "task_contacts": [TABLE], "controller_report": report}
+    )
+    assert out["contact_error_m_table"] == pytest.approx(0.003)
+    assert out["contact_std_m_table"] == pytest.approx(0.004)
+    assert out["approach_velocity_mps_table"] == pytest.approx(0.02)
+    assert out["measured_impact_force_N_table"] == pytest.approx(7.5)
+    assert out["n_contacts_learned"] == 1.0
+
+
+def test_contact_table_has_a_row_per_trial_and_believed_contact() -> None:
+    from ccm.contact_metrics import contact_table
+
+    trial = {"condition": "full", "trial": 1, "pattern_time_s": 20.0, "transition_time_s": 5.0,
+             "contact_error_m_table": 0.001, "contact_std_m_table": 0.004,
+             "approach_velocity_mps_table": 0.02, "impact_force_N_table": 8.1,
+             "measured_impact_force_N_table": 8.0}  # fmt: skip
+    base = {"condition": "base", "trial": 1, "contact_error_m_table": None}
+    text = contact_table([trial, base])
+    assert text is not None and text.count("\n| full | 1 | table |") == 1
+    assert "| base |" not in text
+    assert contact_table([base]) is None
+
+
+def test_patch_metrics_look_near_the_surface_boundary() -> None:
+    """Impact-less contacts: peak acceleration/jerk only where the tool is within
+    patch_window_m of the boundary, and the region of the nearest learned belief."""
+    n = 1000
+    t = np.arange(n) * DT
+    x = 0.4 + 0.1 * t  # 0.1 m/s along +x, crossing the boundary x = 0.45 at t = 0.5 s
+    vx = np.full(n, 0.1)
+    vx[(t > 0.2) & (t < 0.21)] = 0.2  # a jolt far from the boundary: not counted
+    vx[(t > 0.5) & (t < 0.505)] = 0.12  # a small one at the boundary
+    zeros = np.zeros(n)
+    log = {"t": t, "segment": zeros, "pos_x": x, "pos_y": zeros, "pos_z": zeros,
+           "vel_x": vx, "vel_y": zeros, "vel_z": zeros, "true_force_x": zeros,
+           "true_force_y": zeros, "true_force_z": zeros}  # fmt: skip
+    patch = {"name": "b", "kind": "impactless", "position": (0.45, 0.0, 0.0)}
+    report = {"contacts": [{"name": "new4", "kind": "impactless", "mean": [0.452, 0.0, 0.0],
+                            "std": 0.01, "region_m": 0.03}]}  # fmt: skip
+    params = {**PARAMS, "patch_window_m": 0.03, "task_contacts": [patch]}
+    out = contact_metrics(log, 3, {**params, "controller_report": report})
+    acc = np.linalg.norm(derivatives(np.column_stack([vx, zeros, zeros]), DT, 30.0)[0], axis=1)
+    inside = np.abs(x - 0.45) <= 0.03
+    assert out["patch_peak_acc_mps2_b"] == pytest.approx(acc[inside].max())
+    assert out["patch_peak_acc_mps2_b"] < acc.max()  # the far jolt is left out
+    assert out["region_m_b"] == pytest.approx(0.03)
+    assert contact_metrics(log, 3, params)["region_m_b"] is None  # no beliefs: no region

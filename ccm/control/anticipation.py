@@ -8,32 +8,27 @@ On top of :class:`ccm.control.modal.ModalAVIC` (Eq. 4a–4c, Algorithm 1):
   each detected contact. The region C of a contact is its belief ellipsoid at
   ``sigma_scale``.
 * **Re-timing** (§3.5.2, Eq. 11): at the start of each trial the planned pattern is re-timed
-  so that its speed reaches the contact's learned approach velocity (Eq. 9,
-  :class:`ccm.learn.approach.ApproachVelocityModel`) exactly when the path first enters a
-  collision's region C (p_c), holds it until the contact is made (or the path leaves C) and
-  then returns to the plan's speed, all with C∞ rate changes.
-* **Transition-phase controller** (§3.4, Eq. 8) blended in by Eq. 10: the same hybrid law
-  with K* = ``k_collision`` before an expected collision, K_max for an expected impact-less
-  transition; the blend weight rises linearly to 1 by p_c and falls back over
-  ``blend_s`` once the contact is made.
-* **Events** (§3.3): collisions from :class:`ccm.learn.collisions.CollisionDetector` (force
-  jump and loss of velocity), impact-less transitions from Algorithm 1's mode changes. Each
-  is associated with a belief (or creates one) and updates it; a collision's measured
-  approach speed and impact force update that contact's approach model (Eq. 9).
+  so that inside every collision's region C the target moves no faster than that contact's
+  learned approach velocity v_a (Eq. 9, :class:`ccm.learn.approach.ApproachVelocityModel`):
+  the slow-down is complete where the path first enters C (p_c); the slow phase lasts until
+  the contact is made (or the path leaves C) and then the plan's speed returns, all with C∞
+  rate changes. Overlapping regions (wide early beliefs) merge into one slow span.
+* **Transition-phase controllers** (§3.4, Eq. 8) blended in by Eq. 10: before an expected
+  collision K* = ``k_collision`` with the re-timed target position-controlled in every
+  direction (a force loop would otherwise set the approach speed itself); around an expected
+  impact-less transition K* = K_max with the base's force loop. The collision weight takes
+  precedence; the weights rise linearly to 1 by p_c and fall back over ``blend_s`` once the
+  contact is made.
+* **Events** (§3.3, :mod:`ccm.control.contact_events`): collisions from
+  :class:`ccm.learn.collisions.CollisionDetector` (force jump and loss of velocity) when the
+  tool was moving along the commanded motion; quasi-static contacts (the tool stalls and the
+  force against the motion rises, with no detectable impact: position only); impact-less
+  transitions from Algorithm 1's mode changes. Collisions are associated in plan order, the
+  rest with the contact whose window is open (or a new one); a collision's commanded approach
+  speed and measured impact force update that contact's approach model (Eq. 9).
 
 The controller sees only the Observation, the planned pattern and the task's nominal
-contact list; never the scene.
-
-**Status (issue #5, in progress): the mechanics are tested, the H4 results are not yet
-validated.** Known problems, measured on ``h4_contact_learning`` over 5 trials: the table and
-wall beliefs converge (0.1-0.4 mm) but a wrongly associated trial-1 event can pin another
-belief far off; F_m includes the quasi-static press or wall force the pattern itself asks
-for (10 N press, K x offset into a wall), so F_d = 8 N can be unreachable and Eq. 9 drives
-the approach speed to a few mm/s, making trials longer, not shorter (table: F_m 18.6 N at
-6.9 mm/s); below the detector's 5 mm/s minimum approach speed contacts are not detected at
-all, so the slow phase then lasts to the region's exit. Before a collision the transition
-controller position-controls the force direction at the re-timed speed until the contact
-is made, since a force loop would otherwise set the approach speed itself.
+contact list; never the scene. Results and how they compare with seed A: ``experiments/h4.md``.
 """
 
 from __future__ import annotations
@@ -41,13 +36,13 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ccm.control.avic import _OWN_KEYS as _AVIC_KEYS
-from ccm.control.impedance import FixedImpedance
+from ccm.control.contact_events import ContactEvents, TransitionWindow
+from ccm.control.impedance import FixedImpedance, impedance_term
 from ccm.control.modal import ModalAVIC
 from ccm.errors import ConfigError, check_nonneg, check_positive, constructor_kwargs
 from ccm.learn.collisions import CollisionDetector
@@ -57,37 +52,12 @@ from ccm.types import Command, Observation, TargetSample
 
 _KEYS = (
     "sigma_scale", "min_region_radius_m", "blend_s", "k_collision", "path_dt",
-    "init_noise_std", "init_std", "use_kinds", "map", "collisions",
+    "init_noise_std", "init_std", "use_kinds", "stall_fraction", "stall_lookback_s",
+    "association_gate", "map", "collisions",
 )  # fmt: skip
 
 
-@dataclass
-class _Window:
-    """One anticipated transition in wall time: the Eq. 10 weight rises over [t0, t1] (t1 is
-    when the path reaches p_c), stays 1, and falls over ``blend_s`` from ``release``."""
-
-    contact: int
-    kind: str
-    t0: float
-    t1: float
-    release: float  # planned: where the path leaves C; moved earlier when the contact is made
-    done: bool = False
-    u: np.ndarray | None = None  # planned approach direction at p_c (collisions)
-    f_ref: float = 0.0  # force along u when p_c was reached [N]
-    rise_since: float = math.inf  # since when that force is up by the jump threshold [s]
-    pressed: bool = False  # that rise has lasted long enough (a quasi-static contact)
-
-    def alpha(self, t: float, blend_s: float) -> float:
-        if t < self.t0:
-            return 0.0
-        if t < self.t1:
-            return (t - self.t0) / (self.t1 - self.t0)  # Eq. 10: α = t / T
-        if t < self.release:
-            return 1.0
-        return max(0.0, 1.0 - (t - self.release) / blend_s)
-
-
-class AnticipatoryAVIC(ModalAVIC):
+class AnticipatoryAVIC(ContactEvents, ModalAVIC):
     """AVIC + Algorithm 1 + contact anticipation and transition handling (seed A §3.3–3.5).
 
     Args:
@@ -98,6 +68,8 @@ class AnticipatoryAVIC(ModalAVIC):
             (K* of Eq. 8 before a collision [N/m]), ``path_dt`` (sampling of the plan for p_c [s]),
             ``init_noise_std`` / ``init_std`` (vision-noise and initial belief std [m]),
             ``use_kinds`` (which kinds of the task's contacts the robot is told about),
+            ``stall_fraction`` / ``stall_lookback_s`` (the quasi-static contact rule of
+            :meth:`_pressed`), ``association_gate`` (:meth:`_in_sequence`, in σ),
             ``map`` (:class:`ContactMap` arguments) and ``collisions``
             (:class:`CollisionDetector` arguments).
         **modal: the :class:`ModalAVIC` arguments.
@@ -118,7 +90,12 @@ class AnticipatoryAVIC(ModalAVIC):
         self.blend_s = check_positive(f"{key}.blend_s", a.get("blend_s", 0.2))
         self.k_collision = check_positive(f"{key}.k_collision", a.get("k_collision", self.k_free))
         self.path_dt = check_positive(f"{key}.path_dt", a.get("path_dt", 0.005))
-        self.init_noise_std = a.get("init_noise_std", 0.1)
+        self.order_gate = check_positive(f"{key}.association_gate", a.get("association_gate", 5.0))
+        self.stall_fraction = check_positive(f"{key}.stall_fraction", a.get("stall_fraction", 0.2))
+        self.stall_lookback_s = check_nonneg(
+            f"{key}.stall_lookback_s", a.get("stall_lookback_s", 0.05)
+        )
+        self.init_noise_std = a.get("init_noise_std", 0.06)
         self.init_std = a.get("init_std")
         kinds = a.get("use_kinds", ["collision", "impactless"])
         if isinstance(kinds, str) or not all(k in ("collision", "impactless") for k in kinds):
@@ -144,7 +121,9 @@ class AnticipatoryAVIC(ModalAVIC):
     def reset(self, dim: int, control_dt: float) -> None:
         super().reset(dim, control_dt)
         self.detector.reset()
-        self._windows: list[_Window] = []
+        self._windows: list[TransitionWindow] = []
+        self._impacts0: list[int] = []
+        self._prior: list[tuple[list[float], float]] = []
         self._retimed: RetimedPattern | None = None
         self._slow: list[tuple[int, float, float, float]] = []  # contact, φ_c, φ_exit, v_a
         self._changes: list[tuple[float, float, float]] = []
@@ -153,9 +132,12 @@ class AnticipatoryAVIC(ModalAVIC):
         self._last_mode = -1.0
         # (t, planned velocity) of the last ~0.2 s: a collision's v of Eq. 9 is the speed the
         # robot was *commanded* to approach with at the onset (the quantity Eq. 9 revises)
+        keep = self.stall_lookback_s + 2.0 * self.detector.peak_window_s + 0.2  # s of history
         self._vel_hist: deque[tuple[float, np.ndarray]] = deque(
-            maxlen=max(2, round(0.2 / control_dt))
+            maxlen=max(2, round(keep / control_dt))
         )
+        self._force_hist: deque[tuple[float, np.ndarray]] = deque(maxlen=self._vel_hist.maxlen)
+        self._stall_since, self._stall_used = math.inf, False
         self._signals.update(self._ant_signals(0.0, 0.0))
 
     def _ant_signals(self, alpha: float, event: float) -> dict[str, float]:
@@ -179,6 +161,14 @@ class AnticipatoryAVIC(ModalAVIC):
                 dim=pattern.dim, key=f"{self.ant_key}.map", **self._map_args,
             )  # fmt: skip
         self._pattern = pattern
+        self._prior = [  # beliefs before this trial (report(): Table 1's "initial" column)
+            (c.belief.mean.tolist(), float(np.sqrt(np.max(np.diag(c.belief.cov)))))
+            for c in self.contact_map.contacts
+        ]
+        self._impacts0 = [  # Eq. 9 measurements before this trial, per contact (report())
+            len(c.approach.velocities) if c.approach is not None else 0
+            for c in self.contact_map.contacts
+        ]
         ts = np.arange(0.0, pattern.duration + 0.5 * self.path_dt, self.path_dt)
         path = pattern.sample_many(ts)
         pos, speed = path["position"], np.linalg.norm(path["velocity"], axis=1)
@@ -255,12 +245,12 @@ class AnticipatoryAVIC(ModalAVIC):
             else:
                 t1 = warp.inverse(phi_e)
                 t0 = max(t1 - self.blend_s, t_from)
-            windows.append(_Window(i, "collision", t0, t1 + 1e-9, warp.inverse(phi_x)))
+            windows.append(TransitionWindow(i, "collision", t0, t1 + 1e-9, warp.inverse(phi_x)))
         for i, phi_c, phi_x in self._impactless:
             if phi_c > phi_from:
                 t_c = warp.inverse(phi_c)
-                windows.append(_Window(i, "impactless", max(t_c - self.blend_s, t_from), t_c,
-                                       warp.inverse(phi_x)))  # fmt: skip
+                t0 = max(t_c - self.blend_s, t_from)
+                windows.append(TransitionWindow(i, "impactless", t0, t_c, warp.inverse(phi_x)))
         self._changes, self._windows = changes, windows
         if self._retimed is None:
             self._retimed = RetimedPattern(self._pattern, warp)
@@ -274,6 +264,7 @@ class AnticipatoryAVIC(ModalAVIC):
         """Base command (Eq. 4a) blended with the transition-phase command (Eq. 8, Eq. 10)."""
         event = self.detector.update_obs(obs)
         self._vel_hist.append((obs.t, target.velocity))
+        self._force_hist.append((obs.t, obs.force.copy()))
         if self._signals.get("mode_trigger") == 1.0:
             self._trigger_pos = obs.position.copy()
         cmd = super().step(obs, target)
@@ -288,106 +279,53 @@ class AnticipatoryAVIC(ModalAVIC):
                 measured = {}  # the plan was not approaching: no Eq. 9 measurement
             ev = self.contact_map.observe(
                 event.position, "collision", **measured,
-                expected=self._expected(obs.t, "collision"),
+                expected=self._in_sequence(event.position), expected_gate=self.order_gate,
             )  # fmt: skip
             hit = 1.0
             self._release(ev.index, obs.t)
         elif self.contact_map is not None and self._pressed(obs, target):
-            # contact made without a detectable impact: position only
-            ev = self.contact_map.observe(
-                obs.position, "collision",
-                expected=self._expected(obs.t, "collision", pressed=True),
-            )  # fmt: skip
-            hit = 2.0
-            self._release(ev.index, obs.t)
-        alpha, k_star, kind = 0.0, self.k_max, ""
-        for w in self._windows:
-            a = w.alpha(obs.t, self.blend_s)
-            if a > alpha:
-                alpha, kind = a, w.kind
-                k_star = self.k_collision if w.kind == "collision" else self.k_max
+            expected = self._in_sequence(obs.position)
+            if expected is not None:  # contact made without a detectable impact: position only
+                ev = self.contact_map.observe(
+                    obs.position, "collision", expected=expected, expected_gate=self.order_gate
+                )
+                hit = 2.0
+                self._release(ev.index, obs.t)
+        # Eq. 10 with two transition controllers (Eq. 8): the collision one (K* = k_collision,
+        # position control in every direction: the re-timed target, not the force loop, sets
+        # the approach speed) takes precedence over the impact-less one (K* = K_max, the
+        # base's force loop kept); weights a_c + a_i <= 1, continuous in both.
+        a_c = max((w.alpha(obs.t, self.blend_s) for w in self._windows if w.kind == "collision"),
+                  default=0.0)  # fmt: skip
+        a_i = max((w.alpha(obs.t, self.blend_s) for w in self._windows if w.kind != "collision"),
+                  default=0.0)  # fmt: skip
+        a_i = min(a_i, 1.0 - a_c)
+        alpha = a_c + a_i
         if alpha > 0.0:
-            kd = self.damping_for(k_star)
-            t2 = target
-            if kind == "collision" and target.force_dir is not None:
-                # Eq. 8 is an impedance law: until the contact is made, the re-timed position
-                # target (not the force loop) sets the approach speed into the surface
-                t2 = TargetSample(
-                    target.t, target.position, target.velocity, target.acceleration,
-                    target.orientation, None, 0.0, target.segment, target.done,
-                )  # fmt: skip
-            u2m, u2f = self.motion_force(obs, t2, k_star, kd)
-            force = (1.0 - alpha) * cmd.force + alpha * (u2m + u2f)
-            cmd = Command(force=force, torque=cmd.torque)
             k1 = self._signals["stiffness_Npm"]
-            self._signals["stiffness_Npm"] = (1.0 - alpha) * k1 + alpha * k_star
+            force = (1.0 - alpha) * cmd.force
+            if a_c > 0.0:
+                force += a_c * impedance_term(
+                    obs, target, self.k_collision, self.damping_for(self.k_collision),
+                    self.mass_kg, self.inertia_feedforward,
+                )  # fmt: skip
+            if a_i > 0.0:
+                u = impedance_term(
+                    obs, target, self.k_max, self.damping_for(self.k_max), self.mass_kg,
+                    self.inertia_feedforward,
+                )  # fmt: skip
+                d = target.force_dir
+                if d is not None:
+                    u = u - d * float(d @ u) + self.last_force_loop
+                force += a_i * u
+            cmd = Command(force=force, torque=cmd.torque)
+            self._signals["stiffness_Npm"] = (
+                (1.0 - alpha) * k1 + a_c * self.k_collision + a_i * self.k_max
+            )
         self._signals.update(self._ant_signals(alpha, hit))
         if self._retimed is not None:
             self._signals["pattern_rate"] = float(self._retimed.warp.rate(obs.t))
         return cmd
-
-    def _pressed(self, obs: Observation, target: TargetSample) -> bool:
-        """Whether an open collision window's contact was made *quasi-statically*: past p_c, the
-        force against the planned approach direction has risen by ``jump_threshold_N`` over
-        its level at p_c (friction of a slide included there), and stayed up for twice the
-        detector's peak window (so a collision the detector will report is left to it). At a
-        slow approach speed a
-        contact may show neither the force spike nor the loss of speed of a collision (seed A
-        §6: "difficult to isolate the impact force from the force due to surface friction"),
-        and without this the slow phase would last to the region's end. Sets ``w.pressed``."""
-        found = False
-        for w in self._windows:
-            if w.kind != "collision" or w.done or obs.t < w.t1:
-                continue
-            if w.u is None:
-                speed = math.sqrt(float(target.velocity @ target.velocity))
-                if speed < 1e-6:
-                    continue
-                w.u = target.velocity / speed
-                w.f_ref = -float(obs.force @ w.u)
-                continue
-            if -float(obs.force @ w.u) - w.f_ref < self.detector.jump_threshold_N:
-                w.rise_since = math.inf
-                continue
-            w.rise_since = min(w.rise_since, obs.t)
-            w.pressed = obs.t - w.rise_since >= 2.0 * self.detector.peak_window_s
-            found = found or w.pressed
-        return found
-
-    def _commanded_velocity(self, t: float) -> np.ndarray:
-        """The planned (re-timed) velocity at time t (the last sample at or before it) [m/s]."""
-        v = self._vel_hist[0][1]
-        for ti, vi in self._vel_hist:
-            if ti > t + 1e-12:
-                break
-            v = vi
-        return v
-
-    def _approaching(self, event: Any) -> bool:
-        """Whether a detected spike is a collision *ahead*: the force acted against the motion
-        (F_m >= the jump threshold) and the tool was moving along the commanded motion
-        (cos >= 0.5 between v_pre and the planned velocity at the onset). Stick-slip while
-        sliding along a wall also stops the tool with a force jump, across the motion
-        (measured in h4_collisions: cos 0.16 at 8 mm/s)."""
-        if event.impact_force_N < self.detector.jump_threshold_N:
-            return False
-        v_cmd = self._commanded_velocity(event.onset_time)
-        v_pre = np.asarray(event.approach_velocity, dtype=float)
-        den = float(np.linalg.norm(v_cmd) * np.linalg.norm(v_pre))
-        return den > 0.0 and float(v_cmd @ v_pre) / den >= 0.5
-
-    def _expected(self, t: float, kind: str, pressed: bool = False) -> int | None:
-        """Of the contacts whose transition window of ``kind`` is open at time t (only those
-        with ``pressed`` set, if asked), the first in plan order: the task lists its contacts
-        in the order the pattern meets them, and contacts first seen later come after them.
-        Early regions are large and overlap, so several windows can be open at once, and
-        beliefs 0.1 m off cannot tell two contacts 8 cm apart by distance."""
-        open_ = [
-            w.contact for w in self._windows
-            if w.kind == kind and not w.done and w.t0 <= t <= w.release + self.blend_s
-            and (w.pressed or not pressed)
-        ]  # fmt: skip
-        return min(open_) if open_ else None
 
     def _impactless_event(self, obs: Observation) -> None:
         """An Algorithm 1 decision that changes the mode is an impact-less contact event."""
@@ -408,13 +346,40 @@ class AnticipatoryAVIC(ModalAVIC):
         for w in self._windows:
             if w.contact == contact and not w.done:
                 w.release, w.done = min(w.release, t), True
-            elif not w.done:  # the force of this contact is no evidence for the others
-                w.u, w.rise_since, w.pressed = None, math.inf, False
+        self._stall_used = True  # this contact's stall is no evidence for the others
         if contact in self._hits:
             return
         self._hits[contact] = t
         if any(i == contact for i, *_ in self._slow) and self._retimed is not None:
             self._replan(t)  # keep the clock so far; later spans only (this one is made)
+
+    def report(self) -> dict[str, Any]:
+        """``contacts``: per contact belief, its name, kind and source, ``mean`` [m], ``std``
+        (the largest standard deviation along an axis, the ± of seed A Table 1 [m]),
+        ``region_m`` (the largest semi-axis of region C, floor included [m]), ``prior_mean``
+        / ``prior_std`` (the same before the trial; None for a contact first seen in it) and,
+        for a
+        collision made this trial, ``approach_velocity`` (the commanded speed Eq. 9 recorded,
+        m/s) and ``impact_force`` (the F_m it measured, N)."""
+        out = []
+        contacts = self.contact_map.contacts if self.contact_map is not None else []
+        for i, c in enumerate(contacts):
+            before = self._impacts0[i] if i < len(self._impacts0) else 0
+            prior = self._prior[i] if i < len(self._prior) else (None, None)
+            made = c.approach is not None and len(c.approach.velocities) > before
+            out.append({
+                "name": c.name, "kind": c.kind, "source": c.source,
+                "mean": c.belief.mean.tolist(),
+                "std": float(np.sqrt(np.max(np.diag(c.belief.cov)))),
+                "region_m": max(
+                    self.sigma_scale * float(np.sqrt(np.max(np.diag(c.belief.cov)))),
+                    self.min_region_m,
+                ),
+                "prior_mean": prior[0], "prior_std": prior[1],
+                "approach_velocity": c.approach.velocities[-1] if made else None,
+                "impact_force": c.approach.forces[-1] if made else None,
+            })  # fmt: skip
+        return {"contacts": out}
 
     def end_trial(self) -> None:
         """Kalman predict step for every belief (§3.3); models of every mode (ModalAVIC)."""

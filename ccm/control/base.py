@@ -60,6 +60,11 @@ class Controller(ABC):
     def end_trial(self) -> None:  # noqa: B027 - optional hook
         """Called after each trial; learning controllers update cross-trial state here."""
 
+    def report(self) -> dict[str, Any]:
+        """What the controller believes at the end of a trial, for metrics (called after the
+        trial, before :meth:`end_trial`). Plain data; ``{}`` by default."""
+        return {}
+
     def learned_state(self) -> dict[str, Any] | None:
         """What the controller has learned across trials, as JSON-safe data.
 

@@ -32,6 +32,27 @@ def damping_from_rule(
     return np.full_like(np.asarray(stiffness, dtype=float), fixed)
 
 
+def impedance_term(
+    obs: Observation,
+    target: TargetSample,
+    kp: np.ndarray | float,
+    kd: np.ndarray | float,
+    mass_kg: float,
+    inertia_feedforward: bool,
+) -> np.ndarray:
+    """K_p Δx + K_d Δẋ + m ẍ_d in every direction (the motion part of Eq. 1, seed A, before
+    the projection P_m onto the motion subspace). A new array."""
+    # in-place arithmetic: this runs every 1 ms step and each temporary costs ~0.5 µs
+    u = target.position - obs.position
+    u *= kp
+    e_vel = target.velocity - obs.lin_vel
+    e_vel *= kd
+    u += e_vel
+    if inertia_feedforward:
+        u += mass_kg * target.acceleration
+    return u
+
+
 class FixedImpedance(Controller):
     """Task-space hybrid force-motion impedance law of Eq. 1 (seed A) with constant gains.
 
@@ -126,21 +147,19 @@ class FixedImpedance(Controller):
     ) -> tuple[np.ndarray, np.ndarray]:
         """Return (motion-subspace impedance force, force-loop force) for gains ``kp``/``kd``.
 
-        Shared by every controller built on Eq. 1 so the force loop is written once.
+        Shared by every controller built on Eq. 1 so the force loop is written once. The
+        force-loop term is also kept as ``last_force_loop`` (call once per step: the
+        integral advances on every call).
         """
-        # in-place arithmetic: this runs every 1 ms step and each temporary costs ~0.5 µs
-        u_motion = target.position - obs.position
-        u_motion *= kp
-        e_vel = target.velocity - obs.lin_vel
-        e_vel *= kd
-        u_motion += e_vel
-        if self.inertia_feedforward:
-            u_motion += self.mass_kg * target.acceleration
+        u_motion = impedance_term(
+            obs, target, kp, kd, self.mass_kg, self.inertia_feedforward
+        )  # fmt: skip
         d = target.force_dir
         if d is None:
             self._force_int = 0.0
             self._signals["force_error_N"] = 0.0
             self._signals["force_control"] = 0.0
+            self.last_force_loop = self._zero
             return u_motion, self._zero
         u_motion = u_motion - d * float(d @ u_motion)
         f_contact = -float(d @ obs.force)  # force the end-effector exerts on the environment
@@ -151,6 +170,7 @@ class FixedImpedance(Controller):
         u_force = d * mag - d * (self.force_damping * float(d @ obs.lin_vel))
         self._signals["force_error_N"] = err
         self._signals["force_control"] = 1.0
+        self.last_force_loop = u_force
         return u_motion, u_force
 
     def rotation_torque(self, obs: Observation, target: TargetSample) -> np.ndarray:

@@ -350,6 +350,7 @@ class ContactMap:
         v_used: float | None = None,
         f_measured: float | None = None,
         expected: int | None = None,
+        expected_gate: float | None = None,
     ) -> ContactEvent:
         """A contact detected at end-effector position ``z``: associate and update, or create.
 
@@ -358,7 +359,8 @@ class ContactMap:
         repeat within the trial (``updated`` False): a bounce is no new Eq. 9 measurement.
         ``expected``: the contact the robot was anticipating when the event came (it was in
         that contact's region C); it is tried first, within the gate, so that wide early
-        beliefs are not mixed up by nearest-neighbour association.
+        beliefs are not mixed up by nearest-neighbour association; ``expected_gate`` (default
+        ``gate``) is the gate used for it.
         """
         z, dist, i = self._nearest(z, kind)
         if expected is not None:
@@ -366,8 +368,9 @@ class ContactMap:
                 raise ConfigError(f"{self.key}.expected", f"no contact {expected!r}")
             c = self.contacts[expected]
             d = float(c.belief.mahalanobis(z, c.belief.cov + c.belief.R))
-            if c.kind == kind and d <= self.gate:
-                dist, i = d, expected
+            g = self.gate if expected_gate is None else expected_gate
+            if c.kind == kind and d <= g:
+                dist, i = min(d, self.gate), expected
         if (v_used is None) != (f_measured is None):
             raise ConfigError(f"{self.key}.f_measured", "give both v_used and f_measured, or none")
         if v_used is not None and kind != "collision":

@@ -1,0 +1,148 @@
+"""Contact events of the anticipating controller (seed A §3.3): transition windows, which
+detector spikes are collisions, quasi-static contacts and association in plan order.
+
+:class:`ContactEvents` is a mixin of :class:`ccm.control.anticipation.AnticipatoryAVIC`; it
+reads the controller's ``_windows`` (:class:`TransitionWindow`), ``detector``
+(:class:`ccm.learn.collisions.CollisionDetector`), ``contact_map``
+(:class:`ccm.learn.contacts.ContactMap`), the histories ``_vel_hist`` (planned velocity) and
+``_force_hist`` (measured force), the stall state ``_stall_since`` / ``_stall_used`` and the
+settings ``stall_fraction``, ``stall_lookback_s``, ``order_gate`` and ``blend_s``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ccm.types import Observation, TargetSample
+
+
+@dataclass
+class TransitionWindow:
+    """One anticipated transition in wall time: the Eq. 10 weight rises over [t0, t1] (t1 is
+    when the path reaches p_c), stays 1, and falls over ``blend_s`` from ``release``."""
+
+    contact: int
+    kind: str
+    t0: float
+    t1: float
+    release: float  # planned: where the path leaves C; moved earlier when the contact is made
+    done: bool = False
+
+    def alpha(self, t: float, blend_s: float) -> float:
+        if t < self.t0:
+            return 0.0
+        if t < self.t1:
+            return (t - self.t0) / (self.t1 - self.t0)  # Eq. 10: α = t / T
+        if t < self.release:
+            return 1.0
+        return max(0.0, 1.0 - (t - self.release) / blend_s)
+
+
+class ContactEvents:
+    """Event interpretation for :class:`ccm.control.anticipation.AnticipatoryAVIC`."""
+
+    _windows: list[TransitionWindow]
+    detector: Any
+    contact_map: Any
+    _vel_hist: deque[tuple[float, np.ndarray]]
+    _force_hist: deque[tuple[float, np.ndarray]]
+    _stall_since: float
+    _stall_used: bool
+    stall_fraction: float
+    stall_lookback_s: float
+    order_gate: float
+    blend_s: float
+
+    def _pressed(self, obs: Observation, target: TargetSample) -> bool:
+        """Whether a collision was made *quasi-statically* in an open window, past p_c: the
+        tool has stalled (its speed along the commanded motion below ``stall_fraction`` of
+        the commanded speed) for twice the detector's peak window (so a collision the
+        detector will report is left to it), and the force against the commanded motion
+        has risen by the detector's jump threshold over its level ``stall_lookback_s``
+        before the stall began. At a slow approach a contact may show neither the spike nor
+        the sudden loss of speed of a collision (seed A §6: "difficult to isolate the impact
+        force from the force due to surface friction"); without this rule the slow phase
+        would last to the region's end."""
+        speed = math.sqrt(float(target.velocity @ target.velocity))
+        active = any(w.kind == "collision" and not w.done and obs.t >= w.t1 for w in self._windows)
+        u = target.velocity / speed if speed > 0.0 else target.velocity
+        if (
+            not active
+            or speed < self.detector.min_approach_speed
+            or float(obs.lin_vel @ u) > self.stall_fraction * speed
+        ):
+            self._stall_since, self._stall_used = math.inf, False
+            return False
+        if self._stall_used:  # one contact per stall: the tool must move on first
+            return False
+        self._stall_since = min(self._stall_since, obs.t)
+        if obs.t - self._stall_since < 2.0 * self.detector.peak_window_s:
+            return False
+        before = self._history(self._force_hist, self._stall_since - self.stall_lookback_s)
+        return -float((obs.force - before) @ u) >= self.detector.jump_threshold_N
+
+    @staticmethod
+    def _history(hist: deque[tuple[float, np.ndarray]], t: float) -> np.ndarray:
+        """The last sample of a (t, vector) history at or before time t (the oldest if none)."""
+        v = hist[0][1]
+        for ti, vi in hist:
+            if ti > t + 1e-12:
+                break
+            v = vi
+        return v
+
+    def _commanded_velocity(self, t: float) -> np.ndarray:
+        """The planned (re-timed) velocity at time t (the last sample at or before it) [m/s]."""
+        return self._history(self._vel_hist, t)
+
+    def _approaching(self, event: Any) -> bool:
+        """Whether a detected spike is a collision *ahead*: the force acted against the motion
+        (F_m >= the jump threshold) and the tool was moving along the commanded motion
+        (cos >= 0.5 between v_pre and the planned velocity at the onset). Stick-slip while
+        sliding along a wall also stops the tool with a force jump, across the motion
+        (measured in h4_collisions: cos 0.16 at 8 mm/s)."""
+        if event.impact_force_N < self.detector.jump_threshold_N:
+            return False
+        v_cmd = self._commanded_velocity(event.onset_time)
+        v_pre = np.asarray(event.approach_velocity, dtype=float)
+        den = float(np.linalg.norm(v_cmd) * np.linalg.norm(v_pre))
+        return den > 0.0 and float(v_cmd @ v_pre) / den >= 0.5
+
+    def _in_sequence(self, z: np.ndarray) -> int | None:
+        """The collision contact a collision at z belongs to, by the plan's order (§3.3):
+        one already made this trial, if z is within the map's gate of it (a repeat), else the
+        first one in plan order not yet made, if z is within ``association_gate`` of it
+        (Mahalanobis, with measurement noise), else None (nearest within the gate, or new).
+        The task lists its contacts in the order the pattern meets them; early beliefs are
+        wide (0.06 m per axis) and contacts 0.15-0.2 m apart, so nearest-belief association
+        mixed them up in trial 1 (measured)."""
+        assert self.contact_map is not None
+        cm = self.contact_map
+
+        def dist(c: Any) -> float:
+            return float(c.belief.mahalanobis(z, c.belief.cov + c.belief.R))
+
+        for i, c in enumerate(cm.contacts):
+            if c.kind == "collision" and c.updated_this_trial and dist(c) <= cm.gate:
+                return i
+        for i, c in enumerate(cm.contacts):
+            if c.kind == "collision" and c.source == "config" and not c.updated_this_trial:
+                return i if dist(c) <= self.order_gate else None
+        return None
+
+    def _expected(self, t: float, kind: str) -> int | None:
+        """Of the contacts whose transition window of ``kind`` is open at time t, the first in
+        plan order: the task lists its contacts
+        in the order the pattern meets them, and contacts first seen later come after them.
+        Early regions are large and overlap, so several windows can be open at once, and
+        beliefs 0.1 m off cannot tell two contacts 8 cm apart by distance."""
+        open_ = [
+            w.contact for w in self._windows
+            if w.kind == kind and not w.done and w.t0 <= t <= w.release + self.blend_s
+        ]  # fmt: skip
+        return min(open_) if open_ else None
