@@ -160,3 +160,24 @@ def test_quasi_static_contact_needs_a_stall_and_a_force_rise(pattern) -> None:
             c._release(0, t)  # noqa: SLF001
     assert len(fired) == 1
     assert fired[0] == pytest.approx(0.1 + 2 * c.detector.peak_window_s, abs=0.002)
+
+
+def test_retimed_plan_with_overlapping_regions_is_smooth(pattern) -> None:
+    """Wide, overlapping regions (trial 1) merge into one slow span: the re-timed target's
+    rate, and so its velocity, acceleration and jerk (Eq. 11, Fig. 3), stay continuous at
+    every rate change, the pattern's end is reached exactly, and the target never exceeds
+    v_a inside any region."""
+    c = make(init_std=0.03)
+    retimed = c.prepare(pattern, THREE, np.random.default_rng(1))
+    warp = retimed.warp
+    assert len(c._changes) >= 2  # noqa: SLF001 - a slow-down and a speed-up at least
+    for t_s, t_e, _ in c._changes:  # noqa: SLF001
+        for t in (t_s, t_e):
+            before, after = warp.evaluate(t - 1e-7), warp.evaluate(t + 1e-7)
+            for d in range(1, 4):  # rate, its first and second derivatives
+                assert float(after[d]) == pytest.approx(float(before[d]), abs=1e-4)
+    end = retimed.sample(retimed.duration)
+    np.testing.assert_allclose(end.position, pattern.sample(pattern.duration).position, atol=1e-9)
+    for w in c._windows:  # noqa: SLF001
+        ts = np.linspace(w.t1, w.release, 200)
+        assert max(np.linalg.norm(retimed.sample(t).velocity) for t in ts) <= 0.05 + 1e-6
