@@ -31,6 +31,9 @@ Definitions (one trial; step k is one control step, ``t[k]`` its time, dt the me
 * ``contact_time_s_<name>`` = t[o_c] (None without an onset).
 * ``impact_force_N_<name>`` = max of f_c over the steps with t[o_c] ≤ t ≤ t[o_c] +
   ``impact_window_s``; ``peak_impact_force_N`` = the largest of these over the scored contacts.
+  Absolute, like the F_m the controller measures (Eq. 9): for a wall met while sliding it
+  includes the friction of the surfaces already touched that acts along the wall's normal
+  (a few N here).
 * ``impact_acc_mps2_<name>`` = max ‖a[k]‖ over t[o_c] + w0 ≤ t[k] ≤ t[o_c] + w1, with a the
   acceleration from the measured velocity through :func:`ccm.metrics.derivatives` (the same
   low-pass, ``lowpass_hz``, as ``peak_acc_mps2`` of every condition); ``peak_impact_acc_mps2``

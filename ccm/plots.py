@@ -28,7 +28,8 @@ def write_figures(
     Besides the five standard figures, ``error_vs_trial.png`` appears when a condition has
     several trials, ``force_prediction.png`` when a controller logs ``pred_force_N``, and
     ``modes.png`` / ``mode_stiffness_error.png`` when it logs ``mode`` (:mod:`ccm.plots_modes`),
-    and ``contact_transitions.png`` for the H4 contacts experiment (:mod:`ccm.plots_contacts`).
+    and ``contact_transitions.png`` / ``patch_transitions.png`` for the H4 contacts experiments
+    (:mod:`ccm.plots_contacts`, :mod:`ccm.plots_patches`).
     """
     import matplotlib
 
@@ -201,7 +202,13 @@ def write_figures(
     write_mode_figures(logs, dim, trials, save)
 
     # 9. speed, acceleration and force around collisions (seed A §4.5.1, Fig. 16)
-    from ccm.plots_contacts import write_contact_figures
+    from ccm.plots_contacts import wants_contact_figures, write_contact_figures
 
     write_contact_figures(logs, dim, trials, settings, save)
+    # 10. close-ups of the impact-less transitions (seed A §4.5.2, Figs 19-20)
+    from ccm.plots_patches import write_patch_figure
+
+    if wants_contact_figures(logs, trials):
+        task = next(iter(components.values())).task
+        write_patch_figure(logs, task.contacts, dim, float(settings["lowpass_hz"]), save)
     return written

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from ccm.control.anticipation import AnticipatoryAVIC
+from ccm.control.contact_events import TransitionWindow
 from ccm.errors import ConfigError
 from ccm.types import Observation, TargetSample
 
@@ -117,13 +118,11 @@ def test_spike_across_the_commanded_motion_is_no_collision(pattern) -> None:
 def test_collision_and_impactless_weights_sum_to_at_most_one(pattern) -> None:
     """Eq. 10 with two transition controllers: the collision weight takes precedence and the
     stiffness blends continuously (no jump from K_max to K* when windows overlap)."""
-    from ccm.control.contact_events import TransitionWindow as _Window
-
     c = make()
     c.prepare(pattern, CONTACT, np.random.default_rng(0))
     c._windows = [  # noqa: SLF001
-        _Window(0, "impactless", 0.0, 0.1, 10.0),
-        _Window(0, "collision", 0.2, 0.4, 10.0),
+        TransitionWindow(0, "impactless", 0.0, 0.1, 10.0),
+        TransitionWindow(0, "collision", 0.2, 0.4, 10.0),
     ]
     tgt = pattern.sample(0.0)
     k_prev = None
@@ -141,11 +140,9 @@ def test_collision_and_impactless_weights_sum_to_at_most_one(pattern) -> None:
 def test_quasi_static_contact_needs_a_stall_and_a_force_rise(pattern) -> None:
     """In an open collision window, a tool that stops while the plan moves on, with the force
     against the motion up by the jump threshold, has made the contact; once per stall."""
-    from ccm.control.contact_events import TransitionWindow as _Window
-
     c = make()
     c.prepare(pattern, CONTACT, np.random.default_rng(0))
-    c._windows = [_Window(0, "collision", 0.0, 0.0, 10.0)]  # noqa: SLF001
+    c._windows = [TransitionWindow(0, "collision", 0.0, 0.0, 10.0)]  # noqa: SLF001
     moving = TargetSample(0.0, np.zeros(2), np.array([0.0, 0.03]), np.zeros(2), np.zeros(1))
     fired = []
     for k in range(400):
@@ -181,3 +178,25 @@ def test_retimed_plan_with_overlapping_regions_is_smooth(pattern) -> None:
     for w in c._windows:  # noqa: SLF001
         ts = np.linspace(w.t1, w.release, 200)
         assert max(np.linalg.norm(retimed.sample(t).velocity) for t in ts) <= 0.05 + 1e-6
+
+
+def test_collision_transition_keeps_the_press_across_the_motion(pattern) -> None:
+    """Sliding into a wall while pressing on the table: the collision transition controller
+    keeps the hybrid law's force loop along the press (across the motion) but position-
+    controls a force direction that lies along the motion (there the re-timed target, not
+    a force loop, must set the approach speed)."""
+    c = make()
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    c._windows = [TransitionWindow(0, "collision", 0.0, 0.0, 10.0)]  # noqa: SLF001 - alpha = 1
+    press = np.array([0.0, -1.0])
+
+    def command(velocity) -> float:
+        tgt = TargetSample(0.0, np.zeros(2), np.array(velocity, float), np.zeros(2),
+                           np.zeros(1), press, 10.0)  # fmt: skip
+        c.reset(2, 0.001)
+        c._windows = [TransitionWindow(0, "collision", 0.0, 0.0, 10.0)]  # noqa: SLF001
+        return float(c.step(obs_at(0.0), tgt).force @ press)
+
+    # across the motion: ~F_d (1 + k_fp) pressed down; along it: only K* x 0 + D* x v
+    assert command((0.05, 0.0)) == pytest.approx(10.0 * (1 + c.force_kp), rel=0.05)
+    assert abs(command((0.0, -0.05))) < 10.0

@@ -213,7 +213,9 @@ def plot_log(controller: bool = False) -> dict[str, np.ndarray]:
 
 
 def test_contact_figures_written(tmp_path: Path) -> None:
-    comps = {n: SimpleNamespace(task=SimpleNamespace(dim=3)) for n in ("full", "baseline")}
+    patch = {"name": "b", "kind": "impactless", "position": (0.0, 0.0, 0.12)}
+    task = SimpleNamespace(dim=3, contacts=(patch,))
+    comps = {n: SimpleNamespace(task=task) for n in ("full", "baseline")}
     logs = {"full": [plot_log(True), plot_log(True)], "baseline": [plot_log(), plot_log()]}
     trials = [
         {"condition": c, "trial": k, "transition_time_s": 0.1}
@@ -223,12 +225,13 @@ def test_contact_figures_written(tmp_path: Path) -> None:
     written = write_figures(tmp_path, comps, logs, {"lowpass_hz": 30.0}, trials)
     names = {p.name for p in written}
     assert {"contact_transitions.png", "contact_transitions_last.png"} <= names
+    assert "patch_transitions.png" in names  # Figs 19-20: the task has an impact-less contact
     assert (tmp_path / "contact_transitions.png").stat().st_size > 0
     assert (tmp_path / "contact_transitions_last.png").stat().st_size > 0
 
 
 def test_no_contact_figures_outside_h4(tmp_path: Path) -> None:
-    comps = {"fixed": SimpleNamespace(task=SimpleNamespace(dim=3))}
+    comps = {"fixed": SimpleNamespace(task=SimpleNamespace(dim=3, contacts=()))}
     written = write_figures(tmp_path, comps, {"fixed": [plot_log()]}, {"lowpass_hz": 30.0})
     assert written
     assert not (tmp_path / "contact_transitions.png").exists()

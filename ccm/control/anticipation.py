@@ -14,9 +14,10 @@ On top of :class:`ccm.control.modal.ModalAVIC` (Eq. 4a–4c, Algorithm 1):
   the contact is made (or the path leaves C) and then the plan's speed returns, all with C∞
   rate changes. Overlapping regions (wide early beliefs) merge into one slow span.
 * **Transition-phase controllers** (§3.4, Eq. 8) blended in by Eq. 10: before an expected
-  collision K* = ``k_collision`` with the re-timed target position-controlled in every
-  direction (a force loop would otherwise set the approach speed itself); around an expected
-  impact-less transition K* = K_max with the base's force loop. The collision weight takes
+  collision K* = ``k_collision``, with the base's force loop kept across the motion (the
+  10 N press while sliding into a wall) but not along it (there the re-timed target, not a
+  force loop, must set the approach speed); around an expected impact-less transition
+  K* = K_max with the base's force loop. The collision weight takes
   precedence; the weights rise linearly to 1 by p_c and fall back over ``blend_s`` once the
   contact is made.
 * **Events** (§3.3, :mod:`ccm.control.contact_events`): collisions from
@@ -53,6 +54,7 @@ from ccm.types import Command, Observation, TargetSample
 _KEYS = (
     "sigma_scale", "min_region_radius_m", "blend_s", "k_collision", "path_dt",
     "init_noise_std", "init_std", "use_kinds", "stall_fraction", "stall_lookback_s",
+    "stall_travel_m",
     "association_gate", "map", "collisions",
 )  # fmt: skip
 
@@ -68,7 +70,8 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             (K* of Eq. 8 before a collision [N/m]), ``path_dt`` (sampling of the plan for p_c [s]),
             ``init_noise_std`` / ``init_std`` (vision-noise and initial belief std [m]),
             ``use_kinds`` (which kinds of the task's contacts the robot is told about),
-            ``stall_fraction`` / ``stall_lookback_s`` (the quasi-static contact rule of
+            ``stall_fraction`` / ``stall_lookback_s`` / ``stall_travel_m`` (the quasi-static
+            contact rule of
             :meth:`_pressed`), ``association_gate`` (:meth:`_in_sequence`, in σ),
             ``map`` (:class:`ContactMap` arguments) and ``collisions``
             (:class:`CollisionDetector` arguments).
@@ -92,6 +95,9 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         self.path_dt = check_positive(f"{key}.path_dt", a.get("path_dt", 0.005))
         self.order_gate = check_positive(f"{key}.association_gate", a.get("association_gate", 5.0))
         self.stall_fraction = check_positive(f"{key}.stall_fraction", a.get("stall_fraction", 0.2))
+        self.stall_travel_m = check_positive(
+            f"{key}.stall_travel_m", a.get("stall_travel_m", 0.003)
+        )
         self.stall_lookback_s = check_nonneg(
             f"{key}.stall_lookback_s", a.get("stall_lookback_s", 0.05)
         )
@@ -139,6 +145,14 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         self._force_hist: deque[tuple[float, np.ndarray]] = deque(maxlen=self._vel_hist.maxlen)
         self._stall_since, self._stall_used = math.inf, False
         self._signals.update(self._ant_signals(0.0, 0.0))
+
+    @staticmethod
+    def _force_along_motion(d: np.ndarray, target: TargetSample) -> bool:
+        """Whether the force-controlled direction d points along the planned motion (|cos| >
+        0.5): then a force loop would drive the approach itself. Across the motion (a press
+        on the table while sliding into a wall) the hybrid law keeps its force loop."""
+        speed = math.sqrt(float(target.velocity @ target.velocity))
+        return speed > 1e-9 and abs(float(d @ target.velocity)) > 0.5 * speed
 
     def _ant_signals(self, alpha: float, event: float) -> dict[str, float]:
         return {
@@ -284,17 +298,25 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             hit = 1.0
             self._release(ev.index, obs.t)
         elif self.contact_map is not None and self._pressed(obs, target):
-            expected = self._in_sequence(obs.position)
-            if expected is not None:  # contact made without a detectable impact: position only
+            # contact made without a detectable impact (Eq. 9 gets the stall's peak force:
+            # below F_d, so the next approach is faster); weaker evidence than a collision,
+            # so it must lie within the map's gate of the next contact
+            gate = self.contact_map.gate
+            expected = self._in_sequence(obs.position, gate)
+            if expected is None:
+                self._stall_used = True  # e.g. stick-slip short of the contact: not again
+            else:
                 ev = self.contact_map.observe(
-                    obs.position, "collision", expected=expected, expected_gate=self.order_gate
-                )
+                    obs.position, "collision", v_used=self._stall_speed,
+                    f_measured=self._stall_peak, expected=expected, expected_gate=gate,
+                )  # fmt: skip
                 hit = 2.0
                 self._release(ev.index, obs.t)
-        # Eq. 10 with two transition controllers (Eq. 8): the collision one (K* = k_collision,
-        # position control in every direction: the re-timed target, not the force loop, sets
-        # the approach speed) takes precedence over the impact-less one (K* = K_max, the
-        # base's force loop kept); weights a_c + a_i <= 1, continuous in both.
+        # Eq. 10 with two transition controllers (Eq. 8): the collision one (K* = k_collision;
+        # the base's force loop kept unless the force direction lies along the motion, where
+        # the re-timed target, not the force loop, must set the approach speed) takes
+        # precedence over the impact-less one (K* = K_max, force loop kept); weights
+        # a_c + a_i <= 1, continuous in both.
         a_c = max((w.alpha(obs.t, self.blend_s) for w in self._windows if w.kind == "collision"),
                   default=0.0)  # fmt: skip
         a_i = max((w.alpha(obs.t, self.blend_s) for w in self._windows if w.kind != "collision"),
@@ -305,10 +327,14 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             k1 = self._signals["stiffness_Npm"]
             force = (1.0 - alpha) * cmd.force
             if a_c > 0.0:
-                force += a_c * impedance_term(
+                u = impedance_term(
                     obs, target, self.k_collision, self.damping_for(self.k_collision),
                     self.mass_kg, self.inertia_feedforward,
                 )  # fmt: skip
+                d = target.force_dir
+                if d is not None and not self._force_along_motion(d, target):
+                    u = u - d * float(d @ u) + self.last_force_loop  # Eq. 1 hybrid kept
+                force += a_c * u
             if a_i > 0.0:
                 u = impedance_term(
                     obs, target, self.k_max, self.damping_for(self.k_max), self.mass_kg,
