@@ -222,6 +222,7 @@ def run_trial(
     progress: Callable[[int], None] | None = None,
     *,
     max_extension_s: float = math.inf,
+    on_step: Callable[[Simulator], None] | None = None,
 ) -> TrialRecorder:
     """Run one trial: sample P, control, step the simulator, record. Raises on divergence.
 
@@ -229,7 +230,9 @@ def run_trial(
     (:meth:`Controller.prepare`), also during the trial: the trial then lasts
     ``duration_s`` plus however much longer the re-timed pattern currently is, up to
     ``max_extension_s`` (0 = never longer). The recorder's ``pattern_duration`` is the
-    pattern's final duration (for the completion time).
+    pattern's final duration (for the completion time). ``on_step(sim)``, if given, is called
+    once per control step right after the step is recorded (before the simulator steps), e.g.
+    to log the joint encoders an offline learner needs (:mod:`ccm.h3_data`).
     """
     obs, info = comp.sim.reset(seed=seed)
     comp.controller.reset(comp.task.dim, comp.sim.control_dt)
@@ -246,7 +249,7 @@ def run_trial(
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
-        rec = _closed_loop(comp, pattern, obs, info, n_steps, progress)
+        rec = _closed_loop(comp, pattern, obs, info, n_steps, progress, on_step)
     finally:
         if gc_was_enabled:
             gc.enable()
@@ -261,6 +264,7 @@ def _closed_loop(
     info: StepInfo,
     n_steps: Callable[[], int],
     progress: Callable[[int], None] | None,
+    on_step: Callable[[Simulator], None] | None = None,
 ) -> TrialRecorder:
     """The per-step loop of :func:`run_trial`; ``n_steps()`` is re-read every step (a
     re-timing controller may change the pattern's duration during the trial)."""
@@ -273,6 +277,8 @@ def _closed_loop(
         target = pattern.sample(obs.t)
         cmd = ctrl.step(obs, target)
         rec.record(obs, target, cmd, info, ctrl.signals())
+        if on_step is not None:
+            on_step(sim)
         obs, info = sim.step(cmd)
         reason = check_state_finite(obs, max_speed)
         if reason is not None:

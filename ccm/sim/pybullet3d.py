@@ -374,6 +374,11 @@ class PyBullet3D(Simulator):
 
     # ------------------------------------------------------------------ state and control
 
+    def joint_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """The arm's joint encoders (q [rad], q̇ [rad/s], 7 each): the robot's own measurement,
+        for offline learners that work in joint space (seed A §4.4.1); never an Observation."""
+        return self._joint_state()
+
     def _joint_state(self) -> tuple[np.ndarray, np.ndarray]:
         states = self._p.getJointStates(self._robot, self._arm, physicsClientId=self._client)
         q = np.array([s[0] for s in states])
