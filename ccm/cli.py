@@ -205,7 +205,10 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
         print(f"  {name:<20} " + "  ".join(parts))
 
 
-_SHOWN = ("rms_tracking_error_m", "peak_force_N", "mean_stiffness_Npm", "completion_time_s")
+_SHOWN = (
+    "rms_tracking_error_m", "peak_force_N", "mean_stiffness_Npm", "completion_time_s",
+    "joint_pred_rmse_rad", "force_pred_rmse_N", "coverage_95",
+)  # fmt: skip
 
 
 def cmd_run(args: Sequence[str]) -> int:

@@ -303,6 +303,13 @@ def run_experiment(
     trial is in ``trials``.
     Returns the summary dict (also written to ``out_dir/summary.json`` last).
     """
+    kind = cfg.experiment.get("kind", "trials")
+    if kind == "h3":  # an offline-learning comparison, not a trial loop (seed A §4.4)
+        from ccm.h3 import run_h3
+
+        return run_h3(cfg, compose, out_dir)
+    if kind != "trials":
+        raise ConfigError("experiment.kind", f"must be trials or h3, got {kind!r}")
     settings = check_experiment(cfg)
     plan = plan_experiment(cfg, compose, settings["trials"])
     extra = check_extra_metrics(cfg)

@@ -100,6 +100,7 @@ def bench_task(
 
 
 def main(argv: list[str] | None = None) -> int:
+    from ccm.bench.h3 import bench_h3, print_h3
     from ccm.bench.igmm import bench_igmm_long, bench_igmm_step
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -110,6 +111,9 @@ def main(argv: list[str] | None = None) -> int:
         type=int,
         default=3_600_000,
         help="steps of the IGMM flat-cost run (issue #3: 3.6 million)",
+    )
+    parser.add_argument(
+        "--no-h3", action="store_true", help="skip the whole-experiment H3 row (~4 min)"
     )
     args = parser.parse_args(argv)
     rows = [bench_task(t, args.repeats) for t in TASKS]
@@ -156,6 +160,9 @@ def main(argv: list[str] | None = None) -> int:
         f"tracemalloc net per window {long['tracemalloc_net_bytes_early_window']} -> "
         f"{long['tracemalloc_net_bytes_late_window']} B"
     )
+    h3 = None if args.no_h3 else bench_h3()
+    if h3 is not None:
+        print_h3(h3)
     result = {
         "benchmark": "ccm make bench",
         "repeats": args.repeats,
@@ -165,6 +172,7 @@ def main(argv: list[str] | None = None) -> int:
         "avic_step": avic,
         "igmm_step": step,
         "igmm_long": long,
+        "h3_long_horizon": h3,
     }
     args.out.write_text(json.dumps(result, indent=2, default=str) + "\n", encoding="utf-8")
     print(f"wrote {args.out}")
