@@ -22,13 +22,17 @@ An experiment with ``experiment.kind: h3`` runs :func:`run_h3` instead of the tr
 3. **Metrics** per variant, averaged over the test trials: ``joint_pred_rmse_rad`` (all 7
    joints), ``force_pred_rmse_N`` (on ‖F‖, the quantity every variant can be scored on;
    ``force_pred_rmse_wall_N`` on the steps in contact with the wall, the unseen friction),
-   ``force_y_pred_rmse_N`` (along the wall, seed A Figs 13-14; GP variants only) and
-   ``coverage_95`` (fraction of true values inside mean ± 1.96 std). Training and
+   ``force_y_pred_rmse_N`` (along the wall, seed A Figs 13-14; GP variants only),
+   ``coverage_95`` (fraction of true values inside mean ± 1.96 std;
+   ``coverage_95_wall`` after the wall contact), the mean band width
+   ``band_width_rad`` / ``band_width_N`` and ``joint_lag_s`` (the delay that best aligns the
+   true joint trajectory with the prediction; > 0: the truth lags, seed A Fig. 11). Training and
    prediction times are wall-clock facts and go to ``run_info.json`` (``make bench``).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -122,6 +126,19 @@ def _task(tr: Trial) -> np.ndarray:
     return np.hstack([tr["force"], tr["velocity"]])
 
 
+def _lag(truth: np.ndarray, pred: np.ndarray, dt: float, max_s: float = 2.0) -> float:
+    """Delay [s] that best aligns the truth with the prediction (least squares over the
+    overlap): > 0 when the truth lags the prediction (seed A Fig. 11), < 0 when it leads."""
+    n = len(truth)
+    best, best_k = math.inf, 0
+    for k in range(-int(max_s / dt), int(max_s / dt) + 1):
+        a, b = (truth[k:], pred[: n - k]) if k >= 0 else (truth[: n + k], pred[-k:])
+        err = float(np.mean((a - b) ** 2))
+        if err < best:
+            best, best_k = err, k
+    return best_k * dt
+
+
 def _coverage(truth: np.ndarray, mean: np.ndarray, std: np.ndarray) -> float:
     return float(np.mean(np.abs(truth - mean) <= 1.96 * std))
 
@@ -201,6 +218,8 @@ def evaluate(
                 "condition": name, "trial": i,
                 "joint_pred_rmse_rad": _rmse(mean[:, :7], truth[:, :7]),
                 "coverage_95": _coverage(truth[:, :7], mean[:, :7], std[:, :7]),
+                "band_width_rad": float(np.mean(2 * 1.96 * std[:, :7])),
+                "joint_lag_s": _lag(truth[:, :7], mean[:, :7], float(np.median(np.diff(tr["t"])))),
             })  # fmt: skip
             curve(name, tr, truth[:, 0], mean[:, 0], std[:, 0])  # joint 1 (seed A Fig. 11)
         times[f"{name}_predict_s"] = time.perf_counter() - t0
@@ -249,6 +268,8 @@ def _force_row(
         "force_pred_rmse_wall_N": _rmse(f_hat[wall], f[wall]),
         "force_y_pred_rmse_N": _rmse(mean[:, 1], truth[:, 1]),
         "coverage_95": _coverage(truth, mean, std),
+        "coverage_95_wall": _coverage(truth[wall], mean[wall], std[wall]) if wall.any() else None,
+        "band_width_N": float(np.mean(2 * 1.96 * std)),
     }  # fmt: skip
 
 

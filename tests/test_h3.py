@@ -66,3 +66,15 @@ def test_missing_data_from_is_one_line(tmp_path: Path) -> None:
     assert res.returncode != 0
     line = res.stderr.strip().splitlines()[-1]
     assert "h3.data_from" in line and "Traceback" not in res.stderr
+
+
+def test_lag_is_positive_when_the_truth_lags_the_prediction() -> None:
+    import numpy as np
+
+    from ccm.h3 import _lag
+
+    t = np.arange(0.0, 8.0, 0.01)
+    pred = np.tanh(t - 3.0)[:, None]
+    truth = np.tanh(t - 3.5)[:, None]  # the same motion, 0.5 s later
+    assert _lag(truth, pred, 0.01) == pytest.approx(0.5, abs=0.011)
+    assert _lag(pred, truth, 0.01) == pytest.approx(-0.5, abs=0.011)
