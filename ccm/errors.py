@@ -122,3 +122,14 @@ def constructor_kwargs(cls: type, cfg: Any, key: str) -> dict[str, Any]:
             raise ConfigError(f"{key}.{name}", f"unknown key; allowed: {', '.join(allowed)}")
         out[name] = value
     return out
+
+
+def check_bounds(key: str, value: Any) -> tuple[float, float]:
+    """A hyperparameter search interval ``(low, high)`` with 0 < low < high, both finite."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ConfigError(key, f"must be a pair (low, high), got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < hi):
+        raise ConfigError(key, f"must satisfy 0 < low < high (finite), got {value!r}")
+    return lo, hi

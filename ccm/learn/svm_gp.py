@@ -27,17 +27,13 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.svm import SVC
 
-from ccm.errors import ConfigError, check_int_nonneg, check_int_positive, check_positive
-
-
-def _check_bounds(key: str, value: Any) -> tuple[float, float]:
-    try:
-        lo, hi = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ConfigError(key, f"must be a pair (low, high), got {value!r}") from None
-    if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo < hi):
-        raise ConfigError(key, f"must satisfy 0 < low < high (finite), got {value!r}")
-    return lo, hi
+from ccm.errors import (
+    ConfigError,
+    check_bounds,
+    check_int_nonneg,
+    check_int_positive,
+    check_positive,
+)
 
 
 def _as_matrix(key: str, value: Any) -> np.ndarray:
@@ -104,8 +100,8 @@ class ModalGPDynamics:
             f"{key}.max_points_classifier", max_points_classifier
         )
         self.svc_c = check_positive(f"{key}.svc_c", svc_c)
-        self.length_scale_bounds = _check_bounds(f"{key}.length_scale_bounds", length_scale_bounds)
-        self.noise_level_bounds = _check_bounds(f"{key}.noise_level_bounds", noise_level_bounds)
+        self.length_scale_bounds = check_bounds(f"{key}.length_scale_bounds", length_scale_bounds)
+        self.noise_level_bounds = check_bounds(f"{key}.noise_level_bounds", noise_level_bounds)
         self.n_restarts = check_int_nonneg(f"{key}.n_restarts", n_restarts)
         self.max_iter = check_int_positive(f"{key}.max_iter", max_iter)
         self.predict_delta = bool(predict_delta)
