@@ -48,6 +48,12 @@ from ccm.types import Observation, StepInfo
 ComposeFn = Callable[[Sequence[str]], DictConfig]
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
+#: experiment.kind -> "module:function(cfg, compose, out_dir) -> summary" for analyses that
+#: are not the condition x phase x trial loop
+ANALYSES = {
+    "h3": "ccm.h3:run_h3",  # seed A §4.4: offline SVM + GP baseline vs incremental models
+    "mpc_convexity": "ccm.mpc_convexity:run_convexity",  # seed B §5.2, Fig. 4
+}
 
 
 @dataclass
@@ -304,12 +310,14 @@ def run_experiment(
     Returns the summary dict (also written to ``out_dir/summary.json`` last).
     """
     kind = cfg.experiment.get("kind", "trials")
-    if kind == "h3":  # an offline-learning comparison, not a trial loop (seed A §4.4)
-        from ccm.h3 import run_h3
+    if kind in ANALYSES:  # an analysis, not a trial loop: its module writes the run directory
+        import importlib
 
-        return run_h3(cfg, compose, out_dir)
+        module, func = ANALYSES[kind].split(":")
+        return getattr(importlib.import_module(module), func)(cfg, compose, out_dir)
     if kind != "trials":
-        raise ConfigError("experiment.kind", f"must be trials or h3, got {kind!r}")
+        allowed = ", ".join(("trials", *ANALYSES))
+        raise ConfigError("experiment.kind", f"must be one of {allowed}, got {kind!r}")
     settings = check_experiment(cfg)
     plan = plan_experiment(cfg, compose, settings["trials"])
     extra = check_extra_metrics(cfg)
