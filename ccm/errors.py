@@ -133,3 +133,17 @@ def check_bounds(key: str, value: Any) -> tuple[float, float]:
     if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < hi):
         raise ConfigError(key, f"must satisfy 0 < low < high (finite), got {value!r}")
     return lo, hi
+
+
+def config_block(cfg: Any, name: str, allowed: Sequence[str]) -> dict[str, Any]:
+    """The root config's ``name`` block as a plain dict (interpolations resolved), with
+    unknown keys rejected (one line naming ``<name>.<key>``)."""
+    from omegaconf import OmegaConf
+
+    block = OmegaConf.to_container(cfg.get(name) or {}, resolve=True)
+    if not isinstance(block, dict):
+        raise ConfigError(name, f"must be a mapping, got {type(block).__name__}")
+    for k in block:
+        if k not in allowed:
+            raise ConfigError(f"{name}.{k}", f"unknown key; allowed: {', '.join(allowed)}")
+    return block

@@ -39,9 +39,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
-from ccm.errors import ConfigError, check_int_positive
+from ccm.errors import ConfigError, check_int_positive, config_block
 from ccm.h3_data import collect, load_dataset, save_dataset
 from ccm.learn.forward_model import N_STATE, make_forward_model
 from ccm.learn.svm_gp import ModalGPDynamics
@@ -56,11 +56,7 @@ Trial = Mapping[str, np.ndarray]
 
 
 def _settings(cfg: DictConfig) -> dict[str, Any]:
-    h3 = OmegaConf.to_container(cfg.get("h3") or {}, resolve=True)
-    assert isinstance(h3, dict)
-    for k in h3:
-        if k not in _KEYS:
-            raise ConfigError(f"h3.{k}", f"unknown key; allowed: {', '.join(_KEYS)}")
+    h3 = config_block(cfg, "h3", _KEYS)
     for k in ("trials_per_friction", "single_trials", "test_trials", "subsample"):
         h3[k] = check_int_positive(f"h3.{k}", h3.get(k))
     if not h3.get("train_frictions"):

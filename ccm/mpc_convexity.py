@@ -26,9 +26,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
-from ccm.errors import ConfigError, check_int_positive, check_positive
+from ccm.errors import ConfigError, check_int_positive, check_positive, config_block
 from ccm.records import write_json_atomic
 
 INTEGRATORS = ("euler", "implicit", "exponential")
@@ -69,11 +69,7 @@ def hessian_min_eig(settings: Mapping[str, Any]) -> dict[str, np.ndarray]:
 
 
 def _settings(cfg: DictConfig) -> dict[str, Any]:
-    s = OmegaConf.to_container(cfg.get("convexity") or {}, resolve=True)
-    assert isinstance(s, dict)
-    for k in s:
-        if k not in _KEYS:
-            raise ConfigError(f"convexity.{k}", f"unknown key; allowed: {', '.join(_KEYS)}")
+    s = config_block(cfg, "convexity", _KEYS)
     for k in ("ts", "mass", "damping", "sigma_x", "sigma_v"):
         s[k] = check_positive(f"convexity.{k}", s.get(k))
     s["n_points"] = check_int_positive("convexity.n_points", s.get("n_points"))
