@@ -207,7 +207,7 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
 
 _SHOWN = (
     "rms_tracking_error_m", "peak_force_N", "mean_stiffness_Npm", "completion_time_s",
-    "joint_pred_rmse_rad", "force_pred_rmse_N", "coverage_95",
+    "joint_pred_rmse_rad", "force_pred_rmse_N", "coverage_95", "convex_above_sigma_f",
 )  # fmt: skip
 
 
