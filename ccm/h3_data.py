@@ -32,7 +32,8 @@ from ccm.runner import build_components, run_trial, trial_seed
 
 FIELDS = ("t", "q", "dq", "position", "velocity", "force", "mode", "wall_friction")
 WALL_FRICTION = "task.scene.boxes.0.friction"  # the one field H3 varies (table_wall.yaml)
-CONTACT_N = 0.5  # N of true normal force that counts as touching a surface (chosen)
+CONTACT_N = 0.5  # N of true normal force that labels a surface touched (chosen: 10x the F/T
+#                  noise; only the training labels use it, never a controller)
 
 
 def contact_modes(table_normal_N: np.ndarray, box_normal_N: np.ndarray) -> np.ndarray:

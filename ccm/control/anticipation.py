@@ -55,7 +55,7 @@ _KEYS = (
     "sigma_scale", "min_region_radius_m", "blend_s", "k_collision", "path_dt",
     "init_noise_std", "init_std", "use_kinds", "stall_fraction", "stall_lookback_s",
     "stall_travel_m",
-    "association_gate", "map", "collisions",
+    "association_gate", "approach_cos_min", "force_along_cos", "map", "collisions",
 )  # fmt: skip
 
 
@@ -73,6 +73,8 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             ``stall_fraction`` / ``stall_lookback_s`` / ``stall_travel_m`` (the quasi-static
             contact rule of
             :meth:`_pressed`), ``association_gate`` (:meth:`_in_sequence`, in σ),
+            ``approach_cos_min`` (:meth:`_approaching`), ``force_along_cos``
+            (:meth:`_force_along_motion`),
             ``map`` (:class:`ContactMap` arguments) and ``collisions``
             (:class:`CollisionDetector` arguments).
         **modal: the :class:`ModalAVIC` arguments.
@@ -94,6 +96,10 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         self.k_collision = check_positive(f"{key}.k_collision", a.get("k_collision", self.k_free))
         self.path_dt = check_positive(f"{key}.path_dt", a.get("path_dt", 0.005))
         self.order_gate = check_positive(f"{key}.association_gate", a.get("association_gate", 5.0))
+        self.approach_cos_min = check_nonneg(
+            f"{key}.approach_cos_min", a.get("approach_cos_min", 0.5)
+        )
+        self.force_along_cos = check_nonneg(f"{key}.force_along_cos", a.get("force_along_cos", 0.5))
         self.stall_fraction = check_positive(f"{key}.stall_fraction", a.get("stall_fraction", 0.2))
         self.stall_travel_m = check_positive(
             f"{key}.stall_travel_m", a.get("stall_travel_m", 0.003)
@@ -146,13 +152,13 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         self._stall_since, self._stall_used = math.inf, False
         self._signals.update(self._ant_signals(0.0, 0.0))
 
-    @staticmethod
-    def _force_along_motion(d: np.ndarray, target: TargetSample) -> bool:
+    def _force_along_motion(self, d: np.ndarray, target: TargetSample) -> bool:
         """Whether the force-controlled direction d points along the planned motion (|cos| >
-        0.5): then a force loop would drive the approach itself. Across the motion (a press
-        on the table while sliding into a wall) the hybrid law keeps its force loop."""
+        ``force_along_cos``): then a force loop would drive the approach itself. Across the
+        motion (a press on the table while sliding into a wall) the hybrid law keeps its force
+        loop."""
         speed = math.sqrt(float(target.velocity @ target.velocity))
-        return speed > 1e-9 and abs(float(d @ target.velocity)) > 0.5 * speed
+        return speed > 1e-9 and abs(float(d @ target.velocity)) > self.force_along_cos * speed
 
     def _ant_signals(self, alpha: float, event: float) -> dict[str, float]:
         return {

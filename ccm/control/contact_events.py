@@ -63,6 +63,7 @@ class ContactEvents:
     _stall_speed: float
     _stall_peak: float
     order_gate: float
+    approach_cos_min: float
     blend_s: float
 
     def _pressed(self, obs: Observation, target: TargetSample) -> bool:
@@ -130,7 +131,8 @@ class ContactEvents:
     def _approaching(self, event: Any) -> bool:
         """Whether a detected spike is a collision *ahead*: the force acted against the motion
         (F_m >= the jump threshold) and the tool was moving along the commanded motion
-        (cos >= 0.5 between v_pre and the planned velocity at the onset). Stick-slip while
+        (cos >= ``approach_cos_min`` between v_pre and the planned velocity at the onset).
+        Stick-slip while
         sliding along a wall also stops the tool with a force jump, across the motion
         (measured in h4_collisions: cos 0.16 at 8 mm/s)."""
         if event.impact_force_N < self.detector.jump_threshold_N:
@@ -138,7 +140,7 @@ class ContactEvents:
         v_cmd = self._commanded_velocity(event.onset_time)
         v_pre = np.asarray(event.approach_velocity, dtype=float)
         den = float(np.linalg.norm(v_cmd) * np.linalg.norm(v_pre))
-        return den > 0.0 and float(v_cmd @ v_pre) / den >= 0.5
+        return den > 0.0 and float(v_cmd @ v_pre) / den >= self.approach_cos_min
 
     def _in_sequence(self, z: np.ndarray, gate: float | None = None) -> int | None:
         """The collision contact a collision at z belongs to, by the plan's order (§3.3):
