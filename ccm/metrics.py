@@ -11,6 +11,7 @@ from ccm.contact_metrics import contact_metrics
 from ccm.errors import check_positive
 from ccm.filters import first_order_alpha
 from ccm.mode_metrics import mode_metrics
+from ccm.mpc_metrics import gp_mpc_metrics
 
 #: metrics every trial reports (issue #2)
 BASE_METRICS = (
@@ -186,6 +187,7 @@ EXTRA_METRICS = {
     "lag": lag_metrics,
     "modes": mode_metrics,
     "contacts": contact_metrics,
+    "gp_mpc": gp_mpc_metrics,
 }
 
 

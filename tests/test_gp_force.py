@@ -156,7 +156,8 @@ def test_deterministic() -> None:
     ("kwargs", "key"),
     [
         ({"mean": "linear"}, "gp.mean"),
-        ({"hinge_form": "smooth"}, "gp.hinge_form"),
+        ({"hinge_form": "soft"}, "gp.hinge_form"),
+        ({"hinge_width": 0.0}, "gp.hinge_width"),
         ({"hinge_input": -1}, "gp.hinge_input"),
         ({"length_scale_bounds": (1.0, 0.1)}, "gp.length_scale_bounds"),
         ({"noise_var_bounds": (0.0, 1.0)}, "gp.noise_var_bounds"),
@@ -203,3 +204,24 @@ def test_bad_data() -> None:
     with pytest.raises(ConfigError) as err:
         GPForceModels(2).fit(X, np.ones((X.shape[0], 3)))
     assert err.value.key == "gp.F"
+
+
+def test_smooth_hinge_recovers_contact_and_matches_casadi() -> None:
+    """hinge_form="smooth" (softplus, a ccm option for the MPC): the fit still finds the
+    contact and the stiffness, and numpy, casadi and finite differences agree on the slope."""
+    rng = np.random.default_rng(5)
+    x = np.r_[np.linspace(-0.05, 0.0, 40), np.linspace(0.0, 1e-3, 20)]
+    f = -45000.0 * np.maximum(0.0, x - 0.0) + 2.0 + rng.normal(0, 0.2, x.size)
+    model = GPForceModel(mean="hinge", hinge_form="smooth", hinge_width=1e-4).fit(x[:, None], f)
+    c1, c2, c3 = model.hinge_
+    assert abs(c3) < 1e-3 and c2 == pytest.approx(-45000.0, rel=0.1)
+    fns = model.casadi_functions()
+    for p in (-0.002, 0.0, 2e-4, 8e-4):
+        xp = np.array([p])
+        assert float(fns["mean"](xp)) == pytest.approx(model.predict(xp[None, :], False)[0])
+        g = model.mean_gradient(xp)[0]
+        assert float(fns["grad"](xp)) == pytest.approx(g, rel=1e-8, abs=1e-6)
+        h = 1e-7
+        fd = (model.predict(np.array([[p + h], [p - h]]), return_var=False) @ [1, -1]) / (2 * h)
+        assert g == pytest.approx(fd, rel=1e-4, abs=1e-2)
+

@@ -9,6 +9,7 @@ from ccm.control.aic import AIC
 from ccm.control.anticipation import AnticipatoryAVIC
 from ccm.control.avic import AVIC
 from ccm.control.bac import BAC
+from ccm.control.gp_mpc import GPMPC
 from ccm.control.base import Controller
 from ccm.control.impedance import FixedImpedance
 from ccm.control.modal import ModalAVIC
@@ -23,6 +24,7 @@ CONTROLLERS: dict[str, type[Controller]] = {
     "avic": AVIC,
     "avic_modes": ModalAVIC,
     "avic_anticipation": AnticipatoryAVIC,
+    "gp_mpc": GPMPC,
 }
 
 

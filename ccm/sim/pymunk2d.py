@@ -22,6 +22,18 @@ Modelling choices:
   impulse applied *to the EE* (a box resting on a floor under gravity reads +m g along +y).
   With ``control_decimation > 1`` the reported wrench is the mean over the control period's
   physics steps, like a sensor sampled at the physics rate and averaged to the control rate.
+* Seed B's physical-HRI elements (:mod:`ccm.sim.scene_hri`, force laws in
+  :mod:`ccm.sim.hri_forces`) are external forces on the EE centre, applied each physics step
+  like the springs, so the one F/T sensor measures their sum (seed B §3.1): *compliant walls*
+  (a unilateral spring-damper ``max(0, k d - c v.n) n`` at penetration ``d > 0``; it counts as
+  a contact in ``contact_force``, ``n_contacts`` and ``extra["contact"]``, with
+  ``surface_friction`` 0 when nothing else is touched), a *human hand* (a PD pull toward a
+  goal plus low-pass noise, norm-saturated) and a *vibration* (sinusoids with random phases
+  plus white noise, optionally inside a region). Their random draws come from a generator of
+  their own, ``default_rng([seed, 7])``, made at reset only for scenes that have them, so the
+  sensor's stream and every other scene are unchanged. Their truth is in ``extra``:
+  ``wall_offset_m``, ``human_goal``, ``human_fx_N``, ``human_fy_N``, ``disturbance_fx_N``,
+  ``disturbance_fy_N`` (keys present only for the elements the scene has).
 """
 
 from __future__ import annotations
@@ -42,9 +54,13 @@ from ccm.errors import (
     check_vector,
 )
 from ccm.sim.base import Simulator
+from ccm.sim.hri_forces import HRIForces
 from ccm.sim.scene import SceneSpec, as_plain, check_bool, check_keys
 from ccm.sim.sensor import FTSensor, SensorConfig
 from ccm.types import Command, Observation, StepInfo
+
+#: second entry of the seed sequence of the HRI elements' generator (walls, human, vibration)
+HRI_STREAM = 7
 
 _SIM_KEYS = (
     "name",
@@ -148,6 +164,14 @@ class Pymunk2D(Simulator):
         self._rotates = scene.ee.rotate
         self._has_static = bool(scene.surfaces or scene.boxes)
         self._angle0 = float(self.start[2])
+        self._hri = HRIForces(scene, self.dt) if scene.has_hri else None
+        vib = scene.vibration
+        if vib is not None and vib.frequency_hz >= 0.5 / self.dt:
+            raise ConfigError(
+                "task.scene.vibration.frequency_hz",
+                f"must be below the physics Nyquist rate {0.5 / self.dt:g} Hz, "
+                f"got {vib.frequency_hz!r}",
+            )
 
     @classmethod
     def from_config(
@@ -185,8 +209,13 @@ class Pymunk2D(Simulator):
         self._path = 0.0
         x, y = self.start[0], self.start[1]
         fsx, fsy = self._spring_force(x, y)
-        f_true = np.array([fsx, fsy])
-        return self._output(f_true, np.zeros(1), np.zeros(2), 0, -1.0)
+        if self._hri is None:
+            return self._output(np.array([fsx, fsy]), np.zeros(1), np.zeros(2), 0, -1.0)
+        # own stream, so the sensor's noise is the same as without the HRI elements
+        self._hri.reset(np.random.default_rng(None if seed is None else [seed, HRI_STREAM]))
+        wx, wy, nw = self._hri.at_rest(x, y)  # human and vibration: not applied yet
+        f_true, f_contact = np.array([fsx + wx, fsy + wy]), np.array([wx, wy])
+        return self._output(f_true, np.zeros(1), f_contact, nw, 0.0 if nw else -1.0)
 
     def step(self, command: Command) -> tuple[Observation, StepInfo]:
         """Hold ``command`` for ``control_decimation`` physics steps (zero-order hold).
@@ -215,11 +244,20 @@ class Pymunk2D(Simulator):
         n_contacts, mu = 0, -1.0
         # the state read at the end of the previous step (nothing else moves the body)
         x, y, vx, vy = self._state if self._state is not None else (*body.position, *body.velocity)
+        hri = self._hri
+        if hri is not None:
+            hri.start_period()
         for _ in range(self.control_decimation):
             fsx, fsy = self._spring_force(x, y)
             c = self._viscosity(x, y) if self._has_viscous else 0.0
             fex, fey = fsx - c * vx, fsy - c * vy
-            body.force = (cfx + fex, cfy + fey)
+            if hri is not None:  # human + vibration join (fex, fey); compliant walls: (wx, wy)
+                hx, hy, wx, wy, nw = hri.step(x, y, vx, vy, self._steps * dt)
+                fex += hx
+                fey += hy
+                body.force = (cfx + fex + wx, cfy + fey + wy)
+            else:
+                body.force = (cfx + fex, cfy + fey)
             if self._rotates:
                 body.torque = ctq
             space.step(dt)
@@ -227,6 +265,13 @@ class Pymunk2D(Simulator):
                 kfx, kfy, ktq, n_contacts, mu = self._read_contacts(body)
             else:  # nothing to touch: skip the arbiter walk (hot path of contact-free scenes)
                 kfx = kfy = ktq = 0.0
+            if hri is not None:  # a compliant wall is a (frictionless) contact
+                kfx += wx
+                kfy += wy
+                n_static = n_contacts if self._has_static else 0
+                if nw and not n_static:
+                    mu = 0.0
+                n_contacts = n_static + nw
             sfx += fex + kfx
             sfy += fey + kfy
             stq += ktq
@@ -424,15 +469,18 @@ class Pymunk2D(Simulator):
             force=f_meas,
             torque=t_meas,
         )
+        extra = {
+            "viscosity_Nspm": self._viscosity(x, y),
+            "surface_friction": mu if n_contacts > 0 else -1.0,
+            "contact": 1.0 if n_contacts > 0 else 0.0,
+        }
+        if self._hri is not None:
+            extra.update(self._hri.extra())
         info = StepInfo(
             true_force=f_true,
             true_torque=t_true,
             contact_force=f_contact,
             n_contacts=n_contacts,
-            extra={
-                "viscosity_Nspm": self._viscosity(x, y),
-                "surface_friction": mu if n_contacts > 0 else -1.0,
-                "contact": 1.0 if n_contacts > 0 else 0.0,
-            },
+            extra=extra,
         )
         return obs, info

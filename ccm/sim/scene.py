@@ -8,7 +8,9 @@ the world frame has x to the right and y up.
 The elements mirror the environments of seed A (Sidhik et al.): surfaces with friction
 patches (Fig. 1a, Fig. 8, "changing surface" task), walls and blocks (Fig. 1b), springs
 pulling the end-effector (Fig. 1c, "multi-spring") and a viscous medium whose coefficient
-changes over time or distance (§4.1, "porridge stirring").
+changes over time or distance (§4.1, "porridge stirring"). Seed B's (Haninger et al.)
+physical-HRI elements -- compliant walls, a simulated human hand and a vibration
+disturbance -- are specified in :mod:`ccm.sim.scene_hri` and re-exported here.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from ccm.errors import (
     check_range,
     check_vector,
 )
+from ccm.sim.scene_hri import CompliantWallSpec, HumanSpec, VibrationSpec
 
 Vec2 = tuple[float, float]
 
@@ -282,6 +285,19 @@ class RegionSpec:
             and abs(y - self.center[1]) <= self.half_extents[1]
         )
 
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> RegionSpec:
+        """Parse ``{center, half_extents}`` (both required; half extents > 0)."""
+        d = as_plain(cfg, key)
+        check_keys(key, d, ("center", "half_extents"))
+        for req in ("center", "half_extents"):
+            if req not in d:
+                raise ConfigError(f"{key}.{req}", "is required")
+        half = _vec2(f"{key}.half_extents", d["half_extents"])
+        for i, h in enumerate(half):
+            check_positive(f"{key}.half_extents[{i}]", h)
+        return cls(center=_vec2(f"{key}.center", d["center"]), half_extents=half)
+
 
 _SCHEDULE_KEYS = {
     "constant": ("kind", "value"),
@@ -352,16 +368,7 @@ class ViscousSpec:
             raise ConfigError(f"{key}.schedule", "is required")
         region = None
         if d.get("region") is not None:
-            rk = f"{key}.region"
-            rd = as_plain(d["region"], rk)
-            check_keys(rk, rd, ("center", "half_extents"))
-            for req in ("center", "half_extents"):
-                if req not in rd:
-                    raise ConfigError(f"{rk}.{req}", "is required")
-            half = _vec2(f"{rk}.half_extents", rd["half_extents"])
-            for i, h in enumerate(half):
-                check_positive(f"{rk}.half_extents[{i}]", h)
-            region = RegionSpec(center=_vec2(f"{rk}.center", rd["center"]), half_extents=half)
+            region = RegionSpec.from_mapping(d["region"], f"{key}.region")
         return cls(
             schedule=ScheduleSpec.from_mapping(d["schedule"], f"{key}.schedule"), region=region
         )
@@ -375,6 +382,8 @@ class SceneSpec:
         gravity: magnitude along -y [m/s^2] (default 0.0: a top-down planar world).
         ee: the end-effector.
         surfaces, boxes, springs, viscous: the scene elements (each may be empty).
+        compliant_walls, human, vibration: seed B's physical-HRI elements
+            (:mod:`ccm.sim.scene_hri`; empty / ``None`` when absent).
     """
 
     gravity: float = 0.0
@@ -383,16 +392,30 @@ class SceneSpec:
     boxes: tuple[BoxSpec, ...] = ()
     springs: tuple[SpringSpec, ...] = ()
     viscous: tuple[ViscousSpec, ...] = ()
+    compliant_walls: tuple[CompliantWallSpec, ...] = ()
+    human: HumanSpec | None = None
+    vibration: VibrationSpec | None = None
+
+    @property
+    def has_hri(self) -> bool:
+        """True if the scene has any of the seed-B elements (walls, human, vibration)."""
+        return bool(self.compliant_walls) or self.human is not None or self.vibration is not None
 
     @classmethod
     def from_mapping(cls, cfg: Any, prefix: str = "task.scene") -> SceneSpec:
         """Parse and validate a scene mapping; keys in errors start with ``prefix``."""
         d = as_plain(cfg, prefix)
-        check_keys(prefix, d, ("gravity", "ee", "surfaces", "boxes", "springs", "viscous"))
+        check_keys(prefix, d, (
+            "gravity", "ee", "surfaces", "boxes", "springs", "viscous", "compliant_walls",
+            "human", "vibration",
+        ))  # fmt: skip
 
         def parse_list(name: str, parser: Any) -> tuple[Any, ...]:
             items = _list(f"{prefix}.{name}", d.get(name))
             return tuple(parser(c, f"{prefix}.{name}[{i}]") for i, c in enumerate(items))
+
+        def parse_opt(name: str, parser: Any) -> Any:
+            return None if d.get(name) is None else parser(d[name], f"{prefix}.{name}")
 
         return cls(
             gravity=check_nonneg(f"{prefix}.gravity", d.get("gravity", 0.0)),
@@ -401,6 +424,9 @@ class SceneSpec:
             boxes=parse_list("boxes", BoxSpec.from_mapping),
             springs=parse_list("springs", SpringSpec.from_mapping),
             viscous=parse_list("viscous", ViscousSpec.from_mapping),
+            compliant_walls=parse_list("compliant_walls", CompliantWallSpec.from_mapping),
+            human=parse_opt("human", HumanSpec.from_mapping),
+            vibration=parse_opt("vibration", VibrationSpec.from_mapping),
         )
 
 

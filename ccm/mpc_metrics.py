@@ -1,0 +1,91 @@
+"""Metrics of the seed B (GP-MPC) experiments, from one trial log (issue #7).
+
+Inputs: the log columns ``t``, ``vel_*`` (measured velocity), ``contact_force_*`` and
+``n_contacts`` (ground truth, metrics only), the controller's signals ``damping_<axis>_Nspm``
+and ``belief_<n>`` (:class:`ccm.control.gp_mpc.GPMPC`), the truth ``truth_human_goal`` of a
+simulated human, and ``controller_report`` (solve counts). Parameters (``cfg.metrics``):
+``contact_loss_min_s``, ``oscillation_highpass_hz``, ``vel_split_hz``, ``belief_level``,
+``varied_axis``, ``repeatable_axis``.
+
+Definitions (dt = the log's median step):
+
+* ``peak_force_N``: max over the trial of ‖true contact force‖ (seed B Fig. 6).
+* ``contact_losses``: after the first contact, the number of runs of ≥ ``contact_loss_min_s``
+  with no contact that are followed by contact again or last to the end ("lost contact due to
+  oscillation", seed B §6.1).
+* ``force_oscillation_rms_N``: RMS, from the first contact to the end, of ‖contact force‖
+  minus its zero-phase low-pass at ``oscillation_highpass_hz`` (FFT mask): the oscillating part.
+* ``mpc_solves``, ``mpc_infeasible``: MPC solves and unsuccessful solves of the trial.
+* ``rms_vel_low_mps``, ``rms_vel_high_mps``: RMS of the velocity (all axes) below / above
+  ``vel_split_hz`` (seed B Table 3: 15 Hz), by an FFT mask on the whole trial.
+* ``mean_damping_<axis>_Nspm`` and ``damping_ratio_varied_repeatable``: the mean rendered
+  damping per axis and the ratio varied / repeatable axis (seed B Fig. 8).
+* ``belief_correct_final``: 1.0 if the final belief's largest entry is the human's goal;
+  ``time_to_belief_s``: the first time the belief in the true goal reaches ``belief_level``
+  (None if never; seed B Fig. 11).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ccm.records import AXES
+
+
+def _split(x: np.ndarray, dt: float, f_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-phase split of ``x`` into the parts below and above ``f_hz`` (FFT mask)."""
+    spec = np.fft.rfft(x)
+    freqs = np.fft.rfftfreq(len(x), dt)
+    low = np.fft.irfft(np.where(freqs < f_hz, spec, 0.0), n=len(x))
+    return low, x - low
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2))) if x.size else 0.0
+
+
+def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]) -> dict:
+    """The seed B metrics of one trial (module docstring)."""
+    t = log["t"]
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1e-3
+    ax = AXES[:dim]
+    fc = np.linalg.norm(np.column_stack([log[f"contact_force_{a}"] for a in ax]), axis=1)
+    touching = log["n_contacts"] > 0
+    out: dict[str, float | None] = {"peak_force_N": float(fc.max()) if fc.size else 0.0}
+    if touching.any():
+        first = int(np.argmax(touching))
+        c = touching[first:].astype(int)
+        edges = np.flatnonzero(np.diff(c) != 0) + 1
+        runs = np.split(c, edges)
+        min_len = max(1, int(round(float(params.get("contact_loss_min_s", 0.005)) / dt)))
+        out["contact_losses"] = float(sum(1 for r in runs if r[0] == 0 and len(r) >= min_len))
+        _, high = _split(fc[first:], dt, float(params.get("oscillation_highpass_hz", 5.0)))
+        out["force_oscillation_rms_N"] = _rms(high)
+        out["first_contact_s"] = float(t[first])
+    else:
+        out.update(contact_losses=None, force_oscillation_rms_N=None, first_contact_s=None)
+    rep = params.get("controller_report") or {}
+    out["mpc_solves"] = float(rep.get("mpc_solves", 0))
+    out["mpc_infeasible"] = float(rep.get("mpc_infeasible", 0))
+    split = float(params.get("vel_split_hz", 15.0))
+    lows, highs = zip(*(_split(log[f"vel_{a}"], dt, split) for a in ax), strict=True)
+    out["rms_vel_low_mps"] = _rms(np.concatenate(lows)) * np.sqrt(dim)
+    out["rms_vel_high_mps"] = _rms(np.concatenate(highs)) * np.sqrt(dim)
+    damp = {a: log.get(f"damping_{a}_Nspm") for a in ax}
+    for a, d in damp.items():
+        if d is not None:
+            out[f"mean_damping_{a}_Nspm"] = float(np.mean(d))
+    va, ra = params.get("varied_axis"), params.get("repeatable_axis")
+    if va in damp and ra in damp and damp[va] is not None and damp[ra] is not None:
+        out["damping_ratio_varied_repeatable"] = float(np.mean(damp[va]) / np.mean(damp[ra]))
+    beliefs = sorted(k for k in log if k.startswith("belief_"))
+    if len(beliefs) > 1 and "truth_human_goal" in log:
+        b = np.column_stack([log[k] for k in beliefs])
+        goal = int(log["truth_human_goal"][-1])
+        out["belief_correct_final"] = 1.0 if int(np.argmax(b[-1])) == goal else 0.0
+        hit = np.flatnonzero(b[:, goal] >= float(params.get("belief_level", 0.9)))
+        out["time_to_belief_s"] = float(t[hit[0]]) if hit.size else None
+    return out

@@ -1,0 +1,168 @@
+"""GP-MPC (seed B Eq. 13-20): problem structure, constraints, infeasibility handling, and the
+stochastic propagation (Eq. 7-8) against Monte Carlo."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ccm.control.admittance import rollout
+from ccm.control.gp_mpc import GPMPC
+from ccm.control.gp_mpc_problem import GPMPCProblem, Weights
+from ccm.errors import ConfigError
+from ccm.learn.gp_force import GPForceModels
+from ccm.types import Observation, TargetSample
+
+K_WALL = 45000.0  # N/m, seed B's medium environment
+
+
+def _contact_data(n: int, rng: np.random.Generator, wall: float = 0.0, pts: int = 30):
+    """Synthetic demonstration: a push along x into a hinge-shaped wall at ``wall``."""
+    X = rng.uniform(-0.05, 0.05, (pts, n))
+    n_in = pts // 3  # a third of the samples pressed up to 0.8 mm (36 N) into the wall
+    X[:, 0] = np.r_[np.linspace(-0.08, wall, pts - n_in), np.linspace(wall, wall + 8e-4, n_in)]
+    F = rng.normal(0.0, 0.2, (pts, n))
+    F[:, 0] += -K_WALL * np.maximum(0.0, X[:, 0] - wall)
+    return X, F
+
+
+@pytest.fixture(scope="module")
+def gp2() -> GPForceModels:
+    X, F = _contact_data(2, np.random.default_rng(0))
+    return GPForceModels(2, mean="hinge", hinge_form="smooth", n_restarts=1).fit(X, F)
+
+
+def _problem(gp: GPForceModels, **kw) -> GPMPCProblem:
+    w = Weights(vel=1.0, f_ref_target=1.0, delta_mass=1e-3, delta_damping=1e-6)
+    return GPMPCProblem(
+        [gp.casadi_functions()], 2, horizon=6, ts=0.01, f_ref_target=[-15.0, 0.0], weights=w, **kw
+    )
+
+
+def _state(x: float = -0.03, v: float = 0.05) -> np.ndarray:
+    return np.array([x, 0.0, v, 0.0])
+
+
+M0, D0, FR0 = np.full(2, 5.0), np.full(2, 500.0), np.zeros(2)
+
+
+def test_solution_obeys_dynamics_bounds_and_rate_limits(gp2: GPForceModels) -> None:
+    prob = _problem(gp2)
+    sol = prob.solve(_state(), [1.0], M0, D0, FR0)
+    assert sol.success, sol.status
+    # rate limits and bounds
+    assert np.all(np.abs(sol.f_ref - FR0) <= prob.f_ref_rate_max + 1e-6)
+    assert np.all(np.abs(sol.mass - M0) <= prob.delta_mass_max + 1e-6)
+    assert np.all(sol.mass >= prob.mass_bounds[0] - 1e-6)
+    assert np.all(sol.damping >= prob.damping_bounds[0] - 1e-6)
+    # the first predicted state follows Eq. 7 from the measured state (multiple shooting)
+    mu, var = gp2.predict(_state()[None, :2])
+    mus, _ = rollout(sol.mass, sol.damping, 0.01, _state(), np.zeros((4, 4)), sol.f_ref,
+                     lambda x: (gp2.predict(np.asarray(x)[None, :])[0][0], np.zeros(2)), 1)  # fmt: skip
+    np.testing.assert_allclose(sol.predicted[0, 1], mus[1], atol=1e-6)
+    # the f^r target cost pulls f^r toward -15 N along x
+    assert sol.f_ref[0] < -1.0
+
+
+def test_well_damped_constraint_holds_on_the_horizon(gp2: GPForceModels) -> None:
+    prob = _problem(gp2, well_damped={"zeta": 1.2}, delta_damping_max=5000.0)
+    sol = prob.solve(_state(x=-0.004, v=0.1), [1.0], M0, D0, FR0)
+    assert sol.success, sol.status
+    for row in sol.predicted[0, 1:]:
+        k_e = -np.diag(np.array([m.mean_gradient(row[:2]) for m in gp2.models]))
+        need = 2 * 1.2 * np.sqrt(sol.mass * np.maximum(k_e, 0.0))
+        assert np.all(sol.damping >= need - 1e-3)
+    # entering the wall needs D >= 2 zeta sqrt(M K) = 1138 N s/m at M = 5 kg: the constrained
+    # plan raises D and holds back (seed B §6.1: it "paused to allow the damping to increase")
+    free = _problem(gp2, delta_damping_max=5000.0).solve(_state(-0.004, 0.1), [1.0], M0, D0, FR0)
+    assert free.success
+    assert sol.damping[0] > free.damping[0] + 50.0
+    assert sol.predicted[0, -1, 0] < free.predicted[0, -1, 0]
+
+
+def test_infeasible_solve_keeps_last_command_and_is_counted(gp2: GPForceModels) -> None:
+    """Issue #7: a solve that comes back infeasible is not applied and is counted."""
+    ctrl = GPMPC(
+        mass_kg=10.0, demo_modes=[0], max_points=30, gp={"mean": "hinge", "n_restarts": 0},
+        mpc={"horizon": 4, "ts": 0.01,
+             # a force bound below the GP's own noise margin: no trajectory can satisfy it
+             "chance": {"f_max": 1e-3, "epsilon": 0.01}},
+        mpc_period_s=0.01, init_f_ref=[-3.0, 0.0],
+    )  # fmt: skip
+    X, F = _contact_data(2, np.random.default_rng(1))
+    ctrl.reset(2, 0.001)
+    target = TargetSample(0.0, np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(1))
+    for i, (x, f) in enumerate(zip(X, F, strict=True)):
+        for _ in range(ctrl.record_every):
+            ctrl.step(_obs(i * 0.01, x, f), target)
+    ctrl.end_trial()  # fits the GPs and builds Eq. 13
+    ctrl.reset(2, 0.001)
+    for k in range(30):
+        ctrl.step(_obs(k * 0.001, np.array([-0.02, 0.0]), np.zeros(2)), target)
+    rep = ctrl.report()
+    assert rep["mpc_solves"] == 3 and rep["mpc_infeasible"] == 3
+    np.testing.assert_array_equal(ctrl.f_ref, [-3.0, 0.0])  # the last feasible command
+    np.testing.assert_array_equal(ctrl.damping, [500.0, 500.0])
+    assert ctrl.signals()["mpc_infeasible"] == 3.0
+
+
+def _obs(t: float, x: np.ndarray, f: np.ndarray) -> Observation:
+    z = np.zeros(2)
+    return Observation(t, np.asarray(x, float), np.zeros(1), z, np.zeros(1), np.asarray(f), z[:1])
+
+
+def test_belief_weights_the_modes(gp2: GPForceModels) -> None:
+    X, F = _contact_data(2, np.random.default_rng(2))
+    F[:, 1] += 8.0  # mode 1: a human pushing +y as well
+    gp_b = GPForceModels(2, mean="zero", n_restarts=0).fit(X, F)
+    w = Weights(vel=1.0, force=1.0, f_ref=1e-3)
+    prob = GPMPCProblem([gp2.casadi_functions(), gp_b.casadi_functions()], 2, horizon=5,
+                        ts=0.01, weights=w)  # fmt: skip
+    a = prob.solve(_state(), [1.0, 0.0], M0, D0, FR0)
+    prob.reset_warm_start()
+    b = prob.solve(_state(), [0.0, 1.0], M0, D0, FR0)
+    assert a.success and b.success
+    assert abs(a.f_ref[1] - b.f_ref[1]) > 0.1  # the plan follows the believed mode
+
+
+def test_warm_start_cuts_iterations(gp2: GPForceModels) -> None:
+    prob = _problem(gp2)
+    cold = prob.solve(_state(), [1.0], M0, D0, FR0)
+    warm = prob.solve(_state(), [1.0], M0, D0, FR0)
+    assert warm.iterations < cold.iterations
+
+
+def test_propagation_matches_monte_carlo() -> None:
+    """Eq. 7-8 against 20000 sampled trajectories, for a force model whose mean and variance
+    do not depend on pose (where Eq. 7-8 are exact): within 5 % (issue #7)."""
+    rng = np.random.default_rng(0)
+    m, d, ts, steps = np.array([5.0, 8.0]), np.array([500.0, 300.0]), 0.01, 10
+    f_mu, f_var = np.array([4.0, -2.0]), np.array([9.0, 1.0])
+    mus, sigmas = rollout(m, d, ts, np.zeros(4), np.zeros((4, 4)), np.zeros(2),
+                          lambda x: (f_mu, f_var), steps)  # fmt: skip
+    from ccm.control.admittance import system_matrices
+
+    a, b = system_matrices(m, d, ts)
+    xi = np.zeros((20000, 4))
+    for _ in range(steps):
+        f = f_mu + rng.normal(size=(20000, 2)) * np.sqrt(f_var)
+        xi = xi @ a.T + f @ b.T
+    np.testing.assert_allclose(xi.mean(axis=0), mus[-1], rtol=0.05)
+    np.testing.assert_allclose(np.diag(np.cov(xi.T)), np.diag(sigmas[-1]), rtol=0.05)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "key"),
+    [
+        ({"horizon": 0}, "controller.mpc.horizon"),
+        ({"ts": -0.01}, "controller.mpc.ts"),
+        ({"mass_bounds": [0.0, 10.0]}, "controller.mpc.mass_bounds"),
+        ({"well_damped": {"zeta": float("nan")}}, "controller.mpc.well_damped.zeta"),
+        ({"well_damped": {"stiffness": "magic"}}, "controller.mpc.well_damped.stiffness"),
+        ({"chance": {"f_max": -1.0}}, "controller.mpc.chance.f_max"),
+    ],
+)
+def test_bad_settings_name_the_key(gp2: GPForceModels, kwargs: dict, key: str) -> None:
+    with pytest.raises(ConfigError) as err:
+        GPMPCProblem([gp2.casadi_functions()], 2, **kwargs)
+    assert key in str(err.value)
