@@ -224,4 +224,3 @@ def test_smooth_hinge_recovers_contact_and_matches_casadi() -> None:
         h = 1e-7
         fd = (model.predict(np.array([[p + h], [p - h]]), return_var=False) @ [1, -1]) / (2 * h)
         assert g == pytest.approx(fd, rel=1e-4, abs=1e-2)
-

@@ -55,10 +55,12 @@ def test_solution_obeys_dynamics_bounds_and_rate_limits(gp2: GPForceModels) -> N
     assert np.all(np.abs(sol.mass - M0) <= prob.delta_mass_max + 1e-6)
     assert np.all(sol.mass >= prob.mass_bounds[0] - 1e-6)
     assert np.all(sol.damping >= prob.damping_bounds[0] - 1e-6)
+
     # the first predicted state follows Eq. 7 from the measured state (multiple shooting)
-    mu, var = gp2.predict(_state()[None, :2])
-    mus, _ = rollout(sol.mass, sol.damping, 0.01, _state(), np.zeros((4, 4)), sol.f_ref,
-                     lambda x: (gp2.predict(np.asarray(x)[None, :])[0][0], np.zeros(2)), 1)  # fmt: skip
+    def force(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return gp2.predict(np.asarray(x)[None, :])[0][0], np.zeros(2)
+
+    mus, _ = rollout(sol.mass, sol.damping, 0.01, _state(), np.zeros((4, 4)), sol.f_ref, force, 1)
     np.testing.assert_allclose(sol.predicted[0, 1], mus[1], atol=1e-6)
     # the f^r target cost pulls f^r toward -15 N along x
     assert sol.f_ref[0] < -1.0

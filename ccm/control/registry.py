@@ -9,8 +9,8 @@ from ccm.control.aic import AIC
 from ccm.control.anticipation import AnticipatoryAVIC
 from ccm.control.avic import AVIC
 from ccm.control.bac import BAC
-from ccm.control.gp_mpc import GPMPC
 from ccm.control.base import Controller
+from ccm.control.gp_mpc import GPMPC
 from ccm.control.impedance import FixedImpedance
 from ccm.control.modal import ModalAVIC
 from ccm.control.mrac import MRAC
