@@ -7,6 +7,7 @@ bad override ends with one line naming the key and what is allowed, and exit cod
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from collections.abc import Sequence
@@ -200,14 +201,22 @@ class RunFailed(RuntimeError):
 
 def _print_summary(summary: dict, out_dir: Path) -> None:
     print(f"ccm: {summary['experiment']} {summary['status']} -> {out_dir}")
+    rates = {}
+    if (out_dir / "run_info.json").is_file():  # wall-clock facts live outside summary.json
+        rates = json.loads((out_dir / "run_info.json").read_text()).get("mpc_rate_hz") or {}
     for name, metrics in summary["conditions"].items():
         parts = [f"{k}={v:.4g}" for k, v in metrics.items() if isinstance(v, float) and k in _SHOWN]
+        if rates.get(name):
+            parts.append(f"mpc_rate_hz={rates[name]:.3g}")
         print(f"  {name:<20} " + "  ".join(parts))
 
 
 _SHOWN = (
     "rms_tracking_error_m", "peak_force_N", "mean_stiffness_Npm", "completion_time_s",
     "joint_pred_rmse_rad", "force_pred_rmse_N", "coverage_95", "convex_above_sigma_f",
+    "contact_losses", "force_oscillation_rms_N", "mpc_infeasible", "rms_vel_low_mps",
+    "rms_vel_high_mps", "damping_ratio_varied_repeatable", "belief_correct_final",
+    "time_to_belief_s",
 )  # fmt: skip
 
 

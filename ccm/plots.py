@@ -29,7 +29,8 @@ def write_figures(
     several trials, ``force_prediction.png`` when a controller logs ``pred_force_N``, and
     ``modes.png`` / ``mode_stiffness_error.png`` when it logs ``mode`` (:mod:`ccm.plots_modes`),
     and ``contact_transitions.png`` / ``patch_transitions.png`` for the H4 contacts experiments
-    (:mod:`ccm.plots_contacts`, :mod:`ccm.plots_patches`).
+    (:mod:`ccm.plots_contacts`, :mod:`ccm.plots_patches`), and ``mpc_*.png`` for the GP-MPC
+    controller (:mod:`ccm.plots_mpc`).
     """
     import matplotlib
 
@@ -211,4 +212,8 @@ def write_figures(
     if wants_contact_figures(logs, trials):
         task = next(iter(components.values())).task
         write_patch_figure(logs, task.contacts, dim, float(settings["lowpass_hz"]), save)
+    # 11. seed B GP-MPC: contact force, impedance, belief (seed B Figs 6, 8, 11)
+    from ccm.plots_mpc import write_mpc_figures
+
+    write_mpc_figures(last, dim, save)
     return written
