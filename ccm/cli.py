@@ -216,7 +216,7 @@ _SHOWN = (
     "joint_pred_rmse_rad", "force_pred_rmse_N", "coverage_95", "convex_above_sigma_f",
     "contact_losses", "force_oscillation_rms_N", "mpc_infeasible", "rms_vel_low_mps",
     "rms_vel_high_mps", "damping_ratio_varied_repeatable", "belief_correct_final",
-    "time_to_belief_s",
+    "time_to_belief_s", "contact_position_error_m", "stiffness_ratio", "pred_std_contact_N",
 )  # fmt: skip
 
 

@@ -67,5 +67,7 @@ def test_every_experiment_runs_in_fast_mode(composer, tmp_path: Path, option: st
             assert any(k.endswith(("_rmse_rad", "_rmse_N")) for k in metrics)
         elif cfg.experiment.kind == "mpc_convexity":  # an analysis of the MPC cost
             assert metrics["convex_fraction"] is not None
+        elif cfg.experiment.kind == "gp_contact_models":  # GP fits of contact data
+            assert metrics["stiffness_ratio"] is not None
         else:
             assert metrics["rms_tracking_error_m"] is not None
