@@ -5,7 +5,7 @@ Inputs: the log columns ``t``, ``vel_*`` (measured velocity), ``contact_force_*`
 and ``belief_<n>`` (:class:`ccm.control.gp_mpc.GPMPC`), the truth ``truth_human_goal`` of a
 simulated human, and ``controller_report`` (solve counts). Parameters (``cfg.metrics``):
 ``contact_loss_min_s``, ``oscillation_highpass_hz``, ``vel_split_hz``, ``belief_level``,
-``varied_axis``, ``repeatable_axis``.
+``varied_axis``, ``repeatable_axis``, ``press_force_N``, ``press_tol_N``, ``press_hold_s``.
 
 Definitions (dt = the log's median step):
 
@@ -15,6 +15,12 @@ Definitions (dt = the log's median step):
   oscillation", seed B §6.1).
 * ``force_oscillation_rms_N``: RMS, from the first contact to the end, of ‖contact force‖
   minus its zero-phase low-pass at ``oscillation_highpass_hz`` (FFT mask): the oscillating part.
+* ``press_settle_time_s`` (only when ``press_force_N`` is set, e.g. ``contact_head_to_head``):
+  the first time t_s at or after the first contact from which ‖contact force‖ stays within
+  ± ``press_tol_N`` of ``press_force_N`` at every step up to t_s + ``press_hold_s`` (that
+  whole span inside the log); None if never. Like ``completion_time_s`` it is measured from
+  the trial's start. It depends on the contact force alone, so a controller that ignores the
+  target pattern (GP-MPC) is timed the same way as one that follows it.
 * ``mpc_solves``, ``mpc_infeasible``: MPC solves and unsuccessful solves of the trial.
 * ``rms_vel_low_mps``, ``rms_vel_high_mps``: RMS of the velocity (all axes) below / above
   ``vel_split_hz`` (seed B Table 3: 15 Hz), by an FFT mask on the whole trial.
@@ -32,19 +38,42 @@ from typing import Any
 
 import numpy as np
 
+from ccm.errors import check_finite, check_nonneg, check_positive
 from ccm.records import AXES
 
 
 def _split(x: np.ndarray, dt: float, f_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Zero-phase split of ``x`` into the parts below and above ``f_hz`` (FFT mask)."""
-    spec = np.fft.rfft(x)
-    freqs = np.fft.rfftfreq(len(x), dt)
-    low = np.fft.irfft(np.where(freqs < f_hz, spec, 0.0), n=len(x))
+    """Zero-phase split of ``x`` into the parts below and above ``f_hz`` (FFT mask).
+
+    The signal is mirrored before the FFT (even extension), so its two ends do not meet in a
+    jump that the mask would turn into ringing (a press ending at 15 N next to a start at
+    0 N)."""
+    n = len(x)
+    ext = np.concatenate([x, x[::-1]])
+    spec = np.fft.rfft(ext)
+    freqs = np.fft.rfftfreq(2 * n, dt)
+    low = np.fft.irfft(np.where(freqs < f_hz, spec, 0.0), n=2 * n)[:n]
     return low, x - low
 
 
 def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(x**2))) if x.size else 0.0
+
+
+def _press_settle_time(
+    t: np.ndarray, fc: np.ndarray, touching: np.ndarray, dt: float, params: Mapping[str, Any]
+) -> float | None:
+    """``press_settle_time_s`` of the module docstring (None without contact or settling)."""
+    target = check_finite("metrics.press_force_N", params["press_force_N"])
+    tol = check_positive("metrics.press_tol_N", params.get("press_tol_N", 1.5))
+    hold = check_nonneg("metrics.press_hold_s", params.get("press_hold_s", 0.5))
+    if not touching.any():
+        return None
+    n = int(round(hold / dt))  # steps after t_s that must stay in the band too
+    bad = np.concatenate([[0], np.cumsum(np.abs(fc - target) > tol)])
+    k = np.arange(int(np.argmax(touching)), len(fc) - n)  # candidate t_s steps
+    ok = k[bad[k + n + 1] == bad[k]]
+    return float(t[ok[0]]) if ok.size else None
 
 
 def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]) -> dict:
@@ -67,6 +96,8 @@ def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str,
         out["first_contact_s"] = float(t[first])
     else:
         out.update(contact_losses=None, force_oscillation_rms_N=None, first_contact_s=None)
+    if params.get("press_force_N") is not None:
+        out["press_settle_time_s"] = _press_settle_time(t, fc, touching, dt, params)
     rep = params.get("controller_report") or {}
     out["mpc_solves"] = float(rep.get("mpc_solves", 0))
     out["mpc_infeasible"] = float(rep.get("mpc_infeasible", 0))
