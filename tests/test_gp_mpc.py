@@ -168,3 +168,19 @@ def test_bad_settings_name_the_key(gp2: GPForceModels, kwargs: dict, key: str) -
     with pytest.raises(ConfigError) as err:
         GPMPCProblem([gp2.casadi_functions()], 2, **kwargs)
     assert key in str(err.value)
+
+
+def test_force_delay_shifts_the_admittance_response() -> None:
+    """force_delay_s: a force step reaches the admittance reference exactly that late."""
+    target = TargetSample(0.0, np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(1))
+    responses = []
+    for delay in (0.0, 0.003):
+        ctrl = GPMPC(mpc=False, mass_kg=10.0, force_delay_s=delay)
+        ctrl.reset(2, 0.001)
+        v = []
+        for k in range(8):
+            f = np.array([10.0, 0.0]) if k >= 2 else np.zeros(2)
+            ctrl.step(_obs(k * 0.001, np.zeros(2), f), target)
+            v.append(ctrl._v_ref[0])
+        responses.append(np.flatnonzero(np.array(v) > 0)[0])
+    assert responses == [2, 5]

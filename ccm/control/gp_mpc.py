@@ -59,6 +59,8 @@ class GPMPC(Controller):
         gp: keyword arguments of :class:`GPForceModels` (mean, hinge_form, bounds, restarts).
         max_points: at most this many GP training points per mode (evenly thinned).
         min_belief: belief floor of Eq. 12 (0 = pure Bayes).
+        force_delay_s: the measured force reaches the admittance loop this late [s]
+            (sensor filtering and the robot interface's latency; 0 = the same step).
     """
 
     def __init__(
@@ -82,6 +84,7 @@ class GPMPC(Controller):
         gp: Mapping[str, Any] | None = None,
         max_points: int = 60,
         min_belief: float = 0.0,
+        force_delay_s: float = 0.0,
         key: str = "controller",
     ) -> None:
         self.key = key
@@ -112,6 +115,7 @@ class GPMPC(Controller):
         self.gp_cfg = dict(gp or {})
         self.max_points = int(check_positive(f"{key}.max_points", max_points))
         self.min_belief = check_nonneg(f"{key}.min_belief", min_belief)
+        self.force_delay_s = check_nonneg(f"{key}.force_delay_s", force_delay_s)
         self._data: list[list[np.ndarray]] = [[] for _ in range(self.n_modes)]  # rows [x, f]
         self._trials_done = 0
         self._problem: Any = None
@@ -154,6 +158,8 @@ class GPMPC(Controller):
         self._theta0 = 0.0
         self._next_mpc = 0.0
         self._step_count = 0
+        self._delay_steps = int(round(self.force_delay_s / control_dt))
+        self._forces: list[np.ndarray] = []
         self.infeasible = 0
         self.solves = 0
         self._timing = []
@@ -205,7 +211,9 @@ class GPMPC(Controller):
             self._mpc_step(obs)
         # Eq. 4 rendered with backward Euler at the control rate: (M + dt D) v⁺ = M v + dt (f − f^r)
         m, d = self.mass, self.damping
-        v_new = (m * self._v_ref + dt * (obs.force - self.f_ref)) / (m + dt * d)
+        self._forces.append(obs.force)
+        f_loop = self._forces.pop(0) if len(self._forces) > self._delay_steps else self._forces[0]
+        v_new = (m * self._v_ref + dt * (f_loop - self.f_ref)) / (m + dt * d)
         a_ref = (v_new - self._v_ref) / dt
         self._v_ref = v_new
         self._x_ref = self._x_ref + dt * v_new
