@@ -102,6 +102,7 @@ def bench_task(
 def main(argv: list[str] | None = None) -> int:
     from ccm.bench.h3 import bench_h3, print_h3
     from ccm.bench.igmm import bench_igmm_long, bench_igmm_step
+    from ccm.bench.mpc import bench_mpc, print_mpc
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("bench.json"))
@@ -114,6 +115,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument(
         "--no-h3", action="store_true", help="skip the whole-experiment H3 row (~4 min)"
+    )
+    parser.add_argument(
+        "--no-mpc",
+        action="store_true",
+        help="skip the GP-MPC solve-rate rows (~1 min, + a one-time compile per problem)",
     )
     args = parser.parse_args(argv)
     rows = [bench_task(t, args.repeats) for t in TASKS]
@@ -160,6 +166,9 @@ def main(argv: list[str] | None = None) -> int:
         f"tracemalloc net per window {long['tracemalloc_net_bytes_early_window']} -> "
         f"{long['tracemalloc_net_bytes_late_window']} B"
     )
+    mpc = None if args.no_mpc else bench_mpc()
+    if mpc is not None:
+        print_mpc(mpc)
     h3 = None if args.no_h3 else bench_h3()
     if h3 is not None:
         print_h3(h3)
@@ -172,6 +181,7 @@ def main(argv: list[str] | None = None) -> int:
         "avic_step": avic,
         "igmm_step": step,
         "igmm_long": long,
+        "gp_mpc": mpc,
         "h3_long_horizon": h3,
     }
     args.out.write_text(json.dumps(result, indent=2, default=str) + "\n", encoding="utf-8")

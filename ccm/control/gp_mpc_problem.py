@@ -32,6 +32,7 @@ import casadi as ca
 import numpy as np
 
 from ccm.control.admittance import system_matrices
+from ccm.control.mpc_codegen import make_solver
 from ccm.control.mpc_terms import chance_quantile, disturbance_h2, joint_torque_cost
 from ccm.errors import ConfigError, check_bounds, check_int_positive, check_nonneg, check_positive
 
@@ -111,6 +112,9 @@ class GPMPCProblem:
         joint_torque: {shoulder [m] (3,), l1, l2 [m], z [m]: the TCP height used to pad a
             2-D pose} (Eq. 11, 15; f_H = D ẋ, seed B §4.2.2).
         ipopt: extra IPOPT options (e.g. max_iter, tol, hessian_approximation).
+        codegen: None (default): casadi evaluates the NLP functions. A string: C compiler
+            flags (e.g. "-O1"); the functions are generated as C, compiled once per GP fit
+            and cached on disk (:mod:`ccm.control.mpc_codegen`), same solution, faster solves.
         key: configuration-key prefix for errors.
     """
 
@@ -137,6 +141,7 @@ class GPMPCProblem:
         joint_torque: Mapping[str, Any] | None = None,
         ipopt: Mapping[str, Any] | None = None,
         key: str = "controller.mpc",
+        codegen: str | None = None,
     ) -> None:
         if not gp_modes:
             raise ConfigError(f"{key}.modes", "needs at least one mode's GP models")
@@ -254,7 +259,7 @@ class GPMPCProblem:
         for k_, v in (ipopt or {}).items():
             opts[f"ipopt.{k_}"] = v
         nlp = {"x": self._w, "p": self._p, "f": cost, "g": ca.vertcat(*g)}
-        self._solver = ca.nlpsol("gp_mpc", "ipopt", nlp, opts)
+        self._solver = make_solver("gp_mpc", nlp, opts, codegen=codegen)
         self._nw = int(self._w.numel())
         self._warm: dict[str, np.ndarray] | None = None
 
