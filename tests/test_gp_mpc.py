@@ -153,6 +153,29 @@ def test_propagation_matches_monte_carlo() -> None:
     np.testing.assert_allclose(np.diag(np.cov(xi.T)), np.diag(sigmas[-1]), rtol=0.05)
 
 
+def test_propagation_matches_monte_carlo_with_a_pose_dependent_force() -> None:
+    """A human-like force field μ_f(x) = k (g − x) (200 N/m): Eq. 7-8 evaluate it at the mean
+    and ignore the slope's effect on Σ; over 10 steps of 10 ms that stays within 5 % of
+    20000 sampled trajectories whose force is drawn at their own pose."""
+    rng = np.random.default_rng(1)
+    m, d, ts, steps, k, g = np.full(2, 5.0), np.full(2, 500.0), 0.01, 10, 200.0, 0.1
+    var = np.array([4.0, 4.0])
+
+    def field(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return k * (g - np.asarray(x)), var
+
+    mus, sigmas = rollout(m, d, ts, np.zeros(4), np.zeros((4, 4)), np.zeros(2), field, steps)
+    from ccm.control.admittance import system_matrices
+
+    a, b = system_matrices(m, d, ts)
+    xi = np.zeros((20000, 4))
+    for _ in range(steps):
+        f = k * (g - xi[:, :2]) + rng.normal(size=(20000, 2)) * np.sqrt(var)
+        xi = xi @ a.T + f @ b.T
+    np.testing.assert_allclose(xi.mean(axis=0), mus[-1], rtol=0.05)
+    np.testing.assert_allclose(np.diag(np.cov(xi.T)), np.diag(sigmas[-1]), rtol=0.05)
+
+
 @pytest.mark.parametrize(
     ("kwargs", "key"),
     [
