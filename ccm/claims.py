@@ -1,0 +1,225 @@
+"""The papers' claims as data, and their verdicts against measured runs (issue #8, part 1).
+
+``experiments/claims.yaml`` lists each claim: the experiment and the ``summary.json`` values
+it is judged on, a comparison, the paper's own value and its source (figure, table,
+section). :func:`load_claims` validates the file; :func:`evaluate` judges one claim against
+the summaries of several seeds.
+
+A *reference* names one number of a summary: ``{condition, metric}`` for the condition's
+value (``conditions.<condition>.<metric>``), plus ``trial: N`` for one trial's value
+(``trials`` entry with that condition and trial number). Comparisons (per seed, then over
+seeds):
+
+* ``less_than``: ``a < b`` (``a``, ``b`` references);
+* ``ratio_at_most``: ``a / b <= value``;
+* ``at_most`` / ``at_least``: ``a <= value`` / ``a >= value``.
+
+Verdict over n seeds, from d = the per-seed margin (``b − a``, ``value − a/b``,
+``value − a`` or ``a − value``; positive when the claim holds): **reproduced** when the
+lower end of the 95 % confidence interval of the mean margin (t-interval; for one seed the
+margin itself) is > 0 (≥ 0 for the bounds ``at_most`` / ``at_least``, which hold at
+equality), **partially** when only the mean margin is, **not reproduced** otherwise. A claim
+whose values are missing is **not measured**.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ccm.errors import ConfigError
+
+COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least")
+_CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment", "compare",
+               "a", "b", "value", "figures", "note")  # fmt: skip
+_REF_KEYS = ("condition", "metric", "trial")
+# two-sided 95 % Student-t quantiles for 1..30 degrees of freedom (larger: normal 1.96)
+_T95 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179,
+        2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064,
+        2.060, 2.056, 2.052, 2.048, 2.045, 2.042)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Ref:
+    """One number of a summary: a condition's metric, or one trial's."""
+
+    condition: str
+    metric: str
+    trial: int | None = None
+
+    def value(self, summary: Mapping[str, Any]) -> float | None:
+        if self.trial is None:
+            v = (summary.get("conditions") or {}).get(self.condition, {}).get(self.metric)
+        else:
+            rows = [
+                t
+                for t in summary.get("trials") or []
+                if t.get("condition") == self.condition and t.get("trial") == self.trial
+            ]
+            v = rows[0].get(self.metric) if rows else None
+        return float(v) if isinstance(v, int | float) and math.isfinite(v) else None
+
+    def __str__(self) -> str:
+        t = f" (trial {self.trial})" if self.trial is not None else ""
+        return f"{self.condition}.{self.metric}{t}"
+
+
+@dataclass(frozen=True)
+class Claim:
+    """A paper's claim and how ccm judges it (module docstring)."""
+
+    id: str
+    paper: str
+    source: str
+    statement: str
+    paper_value: str
+    experiment: str
+    compare: str
+    a: Ref
+    b: Ref | None = None
+    value: float | None = None
+    figures: tuple[str, ...] = ()
+    note: str = ""
+
+
+@dataclass
+class Verdict:
+    """The outcome of one claim over the seeds found."""
+
+    claim: Claim
+    verdict: str  # reproduced | partially | not reproduced | not measured
+    ours: str  # human-readable: mean ± 95 % CI of the compared quantity
+    mean: float | None
+    ci95: float | None
+    n_seeds: int
+
+
+def _ref(key: str, d: Any) -> Ref:
+    if not isinstance(d, Mapping):
+        raise ConfigError(key, "must be a mapping {condition, metric[, trial]}")
+    unknown = set(d) - set(_REF_KEYS)
+    if unknown:
+        raise ConfigError(f"{key}.{sorted(unknown)[0]}", f"unknown key; allowed: {_REF_KEYS}")
+    for k in ("condition", "metric"):
+        if not isinstance(d.get(k), str) or not d[k]:
+            raise ConfigError(f"{key}.{k}", "is required (a non-empty string)")
+    trial = d.get("trial")
+    if trial is not None and (isinstance(trial, bool) or not isinstance(trial, int) or trial < 1):
+        raise ConfigError(f"{key}.trial", f"must be a trial number >= 1, got {trial!r}")
+    return Ref(d["condition"], d["metric"], trial)
+
+
+def parse_claim(d: Any, key: str) -> Claim:
+    """Validate one claim mapping; every error names its key."""
+    if not isinstance(d, Mapping):
+        raise ConfigError(key, "must be a mapping")
+    unknown = set(d) - set(_CLAIM_KEYS)
+    if unknown:
+        raise ConfigError(f"{key}.{sorted(unknown)[0]}", f"unknown key; allowed: {_CLAIM_KEYS}")
+    for k in ("id", "paper", "source", "statement", "paper_value", "experiment", "compare"):
+        if not isinstance(d.get(k), str | int | float) or d.get(k) == "":
+            raise ConfigError(f"{key}.{k}", "is required")
+    if d["paper"] not in ("seed_a", "seed_b"):
+        raise ConfigError(f"{key}.paper", f"must be seed_a or seed_b, got {d['paper']!r}")
+    compare = d["compare"]
+    if compare not in COMPARISONS:
+        raise ConfigError(f"{key}.compare", f"must be one of {', '.join(COMPARISONS)}")
+    a = _ref(f"{key}.a", d.get("a"))
+    b = _ref(f"{key}.b", d.get("b")) if compare in ("less_than", "ratio_at_most") else None
+    value = None
+    if compare != "less_than":
+        v = d.get("value")
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise ConfigError(f"{key}.value", f"a finite number is required for {compare}")
+        value = float(v)
+    figures = d.get("figures") or []
+    if not isinstance(figures, list) or not all(isinstance(f, str) for f in figures):
+        raise ConfigError(f"{key}.figures", "must be a list of figure file names")
+    return Claim(
+        id=str(d["id"]), paper=d["paper"], source=str(d["source"]),
+        statement=str(d["statement"]), paper_value=str(d["paper_value"]),
+        experiment=str(d["experiment"]), compare=compare, a=a, b=b, value=value,
+        figures=tuple(figures), note=str(d.get("note", "")),
+    )  # fmt: skip
+
+
+def load_claims(path: Path) -> list[Claim]:
+    """Read and validate a claims YAML file (a list under ``claims:``); ids must be unique."""
+    import yaml
+
+    try:
+        data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ConfigError(str(path), f"cannot read claims: {first}") from None
+    items = data.get("claims") if isinstance(data, Mapping) else None
+    if not isinstance(items, list) or not items:
+        raise ConfigError(f"{path}:claims", "must be a non-empty list")
+    claims = [parse_claim(c, f"claims[{i}]") for i, c in enumerate(items)]
+    seen: set[str] = set()
+    for i, c in enumerate(claims):
+        if c.id in seen:
+            raise ConfigError(f"claims[{i}].id", f"duplicate id {c.id!r}")
+        seen.add(c.id)
+    return claims
+
+
+def _margin(c: Claim, s: Mapping[str, Any]) -> tuple[float, float] | None:
+    """(compared quantity, margin > 0 when the claim holds) for one seed's summary."""
+    a = c.a.value(s)
+    if a is None:
+        return None
+    if c.compare in ("at_most", "at_least"):
+        assert c.value is not None
+        return a, (c.value - a) if c.compare == "at_most" else (a - c.value)
+    assert c.b is not None
+    b = c.b.value(s)
+    if b is None:
+        return None
+    if c.compare == "less_than":
+        return a - b, b - a
+    if b == 0.0:
+        return None
+    assert c.value is not None
+    return a / b, c.value - a / b
+
+
+def _mean_ci(x: Sequence[float]) -> tuple[float, float]:
+    arr = np.asarray(x, dtype=float)
+    if arr.size < 2:
+        return float(arr.mean()), 0.0
+    t = _T95[arr.size - 2] if arr.size - 1 <= len(_T95) else 1.96
+    return float(arr.mean()), float(t * arr.std(ddof=1) / math.sqrt(arr.size))
+
+
+def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
+    """Judge ``claim`` on the ``ok`` summaries of its experiment (one per seed)."""
+    runs = [
+        s for s in summaries if s.get("status") == "ok" and s.get("experiment") == claim.experiment
+    ]
+    pairs = [p for p in (_margin(claim, s) for s in runs) if p is not None]
+    if not pairs:
+        return Verdict(claim, "not measured", "–", None, None, 0)
+    qty, margins = zip(*pairs, strict=True)
+    m_mean, m_ci = _mean_ci(margins)
+    q_mean, q_ci = _mean_ci(qty)
+    # a bound (at_most / at_least) holds at equality; a comparison of two values must be strict
+    strict = claim.compare in ("less_than", "ratio_at_most")
+
+    def holds(x: float) -> bool:
+        return x > 0 if strict else x >= 0
+
+    verdict = (
+        "reproduced" if holds(m_mean - m_ci)
+        else "partially" if holds(m_mean)
+        else "not reproduced"
+    )  # fmt: skip
+    what = {"less_than": f"{claim.a} − {claim.b}", "ratio_at_most": f"{claim.a} / {claim.b}"}
+    label = what.get(claim.compare, str(claim.a))
+    ours = f"{label} = {q_mean:.4g} ± {q_ci:.2g} (n = {len(margins)})"
+    return Verdict(claim, verdict, ours, q_mean, q_ci, len(margins))
