@@ -1,0 +1,181 @@
+"""``ccm report DIR``: aggregate the runs under DIR into report.md and report.html (issue #8).
+
+DIR is one run directory or a multirun tree: every ``summary.json`` below it is read.
+
+* **Claims** (``experiments/claims.yaml``, :mod:`ccm.claims`): for each claim whose experiment
+  has runs under DIR, the paper's value, ours (mean ± 95 % CI over the seeds found) and the
+  verdict, with the claim's figures from the run of the lowest seed next to it. Claims whose
+  experiment has no run under DIR are listed as not measured.
+* **Metrics**: per experiment and condition, the mean ± 95 % CI over seeds of every numeric
+  metric (pandas), in a collapsible table.
+* **Failures**: every run whose summary says ``failed``, with its cause.
+
+The HTML is self-contained: figures are embedded as base64 PNG, no scripts, no external
+files. Both files are written atomically (temp file + rename).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from ccm.claims import Verdict, evaluate, load_claims
+from ccm.errors import ConfigError
+from ccm.records import write_atomic
+
+DEFAULT_CLAIMS = Path(__file__).resolve().parents[1] / "experiments" / "claims.yaml"
+
+
+def collect(root: Path) -> list[tuple[Path, dict[str, Any]]]:
+    """(run dir, summary) for every readable summary.json under ``root``, sorted by path."""
+    if not root.is_dir():
+        raise ConfigError("report.dir", f"{root} is not a directory")
+    runs = []
+    for path in sorted(root.rglob("summary.json")):
+        try:
+            runs.append((path.parent, json.loads(path.read_text(encoding="utf-8"))))
+        except (OSError, json.JSONDecodeError) as exc:
+            runs.append((path.parent, {"status": "failed", "error": f"unreadable: {exc}"}))
+    if not runs:
+        raise ConfigError("report.dir", f"no summary.json under {root}")
+    return runs
+
+
+def metrics_table(runs: Sequence[tuple[Path, dict[str, Any]]]) -> Any:
+    """pandas DataFrame: experiment, condition, metric, mean, ci95, n (ok runs only)."""
+    import pandas as pd
+
+    rows = [
+        {"experiment": s.get("experiment"), "seed": s.get("seed"), "condition": cond,
+         "metric": k, "value": float(v)}
+        for _, s in runs if s.get("status") == "ok"
+        for cond, ms in (s.get("conditions") or {}).items()
+        for k, v in ms.items()
+        if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    ]  # fmt: skip
+    if not rows:
+        return pd.DataFrame(columns=["experiment", "condition", "metric", "mean", "ci95", "n"])
+    df = pd.DataFrame(rows)
+    g = df.groupby(["experiment", "condition", "metric"], sort=True)["value"]
+    out = g.agg(["mean", "std", "count"]).reset_index()
+    out["ci95"] = 1.96 * out["std"].fillna(0.0) / out["count"].clip(lower=1) ** 0.5
+    return out.rename(columns={"count": "n"}).drop(columns="std")
+
+
+def _figure(runs: Sequence[tuple[Path, dict]], experiment: str, name: str) -> Path | None:
+    ok = [(s.get("seed", 0), d) for d, s in runs
+          if s.get("experiment") == experiment and s.get("status") == "ok"]  # fmt: skip
+    for _, d in sorted(ok, key=lambda x: (x[0] if isinstance(x[0], int) else 0, str(x[1]))):
+        if (d / "figures" / name).is_file():
+            return d / "figures" / name
+    return None
+
+
+def _verdicts(runs: Sequence[tuple[Path, dict]], claims_path: Path) -> list[Verdict]:
+    summaries = [s for _, s in runs]
+    return [evaluate(c, summaries) for c in load_claims(claims_path)]
+
+
+def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
+    """(markdown, html) of the report for the runs under ``root``."""
+    runs = collect(root)
+    verdicts = _verdicts(runs, claims_path)
+    table = metrics_table(runs)
+    failures = [(d, s.get("error", "?")) for d, s in runs if s.get("status") != "ok"]
+    counts: dict[str, int] = {}
+    for v in verdicts:
+        counts[v.verdict] = counts.get(v.verdict, 0) + 1
+    tally = ", ".join(f"{n} {k}" for k, n in sorted(counts.items()))
+
+    md = [
+        f"# ccm report: {root}", "", f"{len(runs)} runs; claims: {tally}.", "",
+        "| claim | source | paper | ours (mean ± 95 % CI) | verdict |", "|---|---|---|---|---|",
+    ]  # fmt: skip
+    hb = [
+        "<!doctype html><html><head><meta charset='utf-8'><title>ccm report</title><style>",
+        "body{font-family:sans-serif;max-width:1100px;margin:2em auto;}"
+        "table{border-collapse:collapse;font-size:90%}td,th{border:1px solid #ccc;padding:4px}"
+        ".reproduced{background:#d8f5d0}.partially{background:#fff2c2}"
+        ".not.reproduced,.not-reproduced{background:#f8d0d0}.not-measured{background:#eee}"
+        "img{max-width:520px;margin:4px}",
+        "</style></head><body>",
+        f"<h1>ccm report</h1><p>{html.escape(str(root))}: {len(runs)} runs; claims: "
+        f"{html.escape(tally)}.</p><h2>Claims</h2><table><tr><th>claim</th><th>source</th>"
+        "<th>paper</th><th>ours (mean ± 95 % CI)</th><th>verdict</th><th>figures</th></tr>",
+    ]
+    for v in verdicts:
+        c = v.claim
+        figs = [(f, _figure(runs, c.experiment, f)) for f in c.figures]
+        md_figs = " ".join(f"[{f}]({p.relative_to(root)})" for f, p in figs if p is not None)
+        note = f" ({c.note})" if c.note else ""
+        md.append(
+            f"| **{c.id}**: {c.statement}{note} | {c.paper}, {c.source}, `{c.experiment}` | "
+            f"{c.paper_value} | {v.ours} | **{v.verdict}** {md_figs} |"
+        )
+        imgs = "".join(
+            f"<img alt='{html.escape(f)}' src='data:image/png;base64,"
+            f"{base64.b64encode(p.read_bytes()).decode()}'>"
+            for f, p in figs if p is not None
+        )  # fmt: skip
+        hb.append(
+            f"<tr><td><b>{html.escape(c.id)}</b>: {html.escape(c.statement + note)}</td>"
+            f"<td>{html.escape(f'{c.paper}, {c.source}')}<br><code>{html.escape(c.experiment)}"
+            f"</code></td><td>{html.escape(c.paper_value)}</td><td>{html.escape(v.ours)}</td>"
+            f"<td class='{v.verdict.replace(' ', '-')}'><b>{html.escape(v.verdict)}</b></td>"
+            f"<td>{imgs}</td></tr>"
+        )
+    hb.append("</table><h2>Run failures</h2>")
+    md += ["", "## Run failures", ""]
+    if failures:
+        md += [f"* `{d}`: {e}" for d, e in failures]
+        hb.append("<ul>" + "".join(
+            f"<li><code>{html.escape(str(d))}</code>: {html.escape(str(e))}</li>"
+            for d, e in failures) + "</ul>")  # fmt: skip
+    else:
+        md.append("None.")
+        hb.append("<p>None.</p>")
+    md += ["", "## Metrics (mean ± 95 % CI over seeds)", ""]
+    hb.append("<h2>Metrics (mean ± 95 % CI over seeds)</h2>")
+    for exp, sub in table.groupby("experiment", sort=True):
+        md += [
+            f"### {exp}",
+            "",
+            "| condition | metric | mean | ± CI | n |",
+            "|---|---|---|---|---|",
+        ]
+        md += [f"| {r.condition} | {r.metric} | {r.mean:.4g} | {r.ci95:.2g} | {r.n} |"
+               for r in sub.itertuples()]  # fmt: skip
+        md.append("")
+        head = "".join(f"<th>{h}</th>" for h in ("condition", "metric", "mean", "± CI", "n"))
+        hb.append(f"<details><summary>{html.escape(str(exp))}</summary><table><tr>{head}</tr>")
+        hb += [f"<tr><td>{html.escape(str(r.condition))}</td><td>{html.escape(str(r.metric))}"
+               f"</td><td>{r.mean:.4g}</td><td>{r.ci95:.2g}</td><td>{r.n}</td></tr>"
+               for r in sub.itertuples()]  # fmt: skip
+        hb.append("</table></details>")
+    hb.append("</body></html>")
+    return "\n".join(md) + "\n", "\n".join(hb) + "\n"
+
+
+def main(argv: Sequence[str]) -> int:
+    """``ccm report DIR [--claims FILE]``: write DIR/report.md and DIR/report.html."""
+    args = list(argv)
+    claims = DEFAULT_CLAIMS
+    if "--claims" in args:
+        i = args.index("--claims")
+        if i + 1 >= len(args):
+            raise ConfigError("report.claims", "--claims needs a file")
+        claims = Path(args.pop(i + 1))
+        args.pop(i)
+    if len(args) != 1:
+        raise ConfigError("report", "usage: ccm report DIR [--claims FILE]")
+    root = Path(args[0])
+    md, page = render(root, claims)
+    write_atomic(root / "report.md", md)
+    write_atomic(root / "report.html", page)
+    print(f"ccm: report -> {root / 'report.html'} and report.md")
+    return 0

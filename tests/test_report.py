@@ -1,0 +1,90 @@
+"""``ccm report DIR`` (issue #8 part 3): claims with verdicts and embedded figures, metric
+tables over seeds, and run failures with their causes."""
+
+from __future__ import annotations
+
+import json
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+from ccm.errors import ConfigError
+from ccm.report import main, metrics_table
+
+PNG = bytes.fromhex(
+    "89504e470d0a1a0a0000000d4948445200000001000000010806000000"
+    "1f15c4890000000d49444154789c6360000002000154a24f5d0000000049454e44ae426082"
+)
+CLAIMS = """claims:
+  - {id: c1, paper: seed_b, source: "Fig. 6", statement: "x below y", paper_value: "q",
+     experiment: e, compare: less_than, a: {condition: x, metric: m},
+     b: {condition: y, metric: m}, figures: [f.png]}
+  - {id: c2, paper: seed_a, source: "Fig. 1", statement: "unmeasured", paper_value: "q",
+     experiment: other, compare: at_most, a: {condition: x, metric: m}, value: 1.0}
+"""
+
+
+def _run(root: Path, name: str, summary: dict, figure: bool = False) -> None:
+    d = root / name
+    (d / "figures").mkdir(parents=True)
+    (d / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
+    if figure:
+        (d / "figures" / "f.png").write_bytes(PNG)
+
+
+@pytest.fixture
+def sweep(tmp_path: Path) -> Path:
+    root = tmp_path / "multirun"
+    for seed, (a, b) in enumerate([(1.0, 2.0), (1.2, 2.1), (0.9, 2.0)]):
+        _run(root, str(seed), {"experiment": "e", "status": "ok", "seed": seed,
+                               "conditions": {"x": {"m": a}, "y": {"m": b}}, "trials": []},
+             figure=seed == 0)  # fmt: skip
+    _run(root, "3", {"experiment": "e", "status": "failed", "error": "controller.k: must be > 0"})
+    (tmp_path / "claims.yaml").write_text(CLAIMS, encoding="utf-8")
+    return root
+
+
+def test_report_lists_claims_verdicts_figures_and_failures(sweep: Path) -> None:
+    assert main([str(sweep), "--claims", str(sweep.parent / "claims.yaml")]) == 0
+    md = (sweep / "report.md").read_text(encoding="utf-8")
+    page = (sweep / "report.html").read_text(encoding="utf-8")
+    assert "**c1**" in md and "**reproduced**" in md and "**not measured**" in md
+    assert "controller.k: must be > 0" in md and "controller.k: must be &gt; 0" not in md
+    assert "data:image/png;base64," in page  # self-contained: the figure is embedded
+    assert "controller.k: must be &gt; 0" in page
+    assert "src='http" not in page and "<script" not in page
+
+    class Tags(HTMLParser):
+        def __init__(self) -> None:
+            super().__init__()
+            self.stack: list[str] = []
+            self.ok = True
+
+        def handle_starttag(self, tag: str, attrs: list) -> None:
+            if tag not in ("meta", "img", "br"):
+                self.stack.append(tag)
+
+        def handle_endtag(self, tag: str) -> None:
+            self.ok &= bool(self.stack) and self.stack.pop() == tag
+
+    parser = Tags()
+    parser.feed(page)
+    assert parser.ok and parser.stack == []  # every element closed, in order
+
+
+def test_metrics_table_means_over_seeds(sweep: Path) -> None:
+    from ccm.report import collect
+
+    t = metrics_table(collect(sweep))
+    row = t[(t.condition == "x") & (t.metric == "m")].iloc[0]
+    assert row["mean"] == pytest.approx(31 / 30) and row["n"] == 3
+
+
+def test_bad_report_input(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="no summary.json"):
+        main([str(tmp_path)])
+    with pytest.raises(ConfigError, match="not a directory"):
+        main([str(tmp_path / "missing")])
+    with pytest.raises(ConfigError, match="usage"):
+        main([])
