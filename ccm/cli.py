@@ -26,6 +26,9 @@ commands:
   run [OVERRIDES]       run an experiment (Hydra overrides, e.g. experiment=smoke seed=3)
   run -m [OVERRIDES]    multirun sweep, e.g. ccm run -m experiment=smoke seed=0,1,2
   list                  the experiments, tasks, controllers and sims the config groups offer
+  report DIR            report.md + report.html for the runs under DIR (a run or a sweep):
+                        the papers' claims with verdicts (experiments/claims.yaml), metrics
+                        over seeds, failures; --claims FILE for another claims file
   --help, -h            this message; `ccm run --help` shows Hydra's help and the config
   --version             print the version
 
@@ -82,8 +85,15 @@ def _fail(message: str, code: int) -> int:
 def _combos(overrides: Sequence[str], multirun: bool) -> list[list[str]]:
     """Override lists to pre-check: the base combination, then each sweep value in turn."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
 
-    parsed = OverridesParser.create().parse_overrides(list(overrides))
+    parser = OverridesParser.create()
+    parsed = []
+    for text in overrides:  # one at a time, so a syntax error names its override
+        try:
+            parsed += parser.parse_overrides([text])
+        except HydraException as exc:  # OverrideParseException: the grammar's message only
+            raise ValueError(f"{text}: {_one_line(exc)}") from None
     base: list[str] = []
     variants: list[tuple[int, list[str]]] = []
     for i, ov in enumerate(parsed):
@@ -118,6 +128,7 @@ def _check_groups(overrides: Sequence[str]) -> str | None:
 
 def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
     """Compose each override combination and build its components; return an error line."""
+    import yaml
     from hydra import compose, initialize_config_dir
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
@@ -144,7 +155,24 @@ def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
                 return str(exc)
             except (HydraException, OmegaConfBaseException, ValueError, TypeError) as exc:
                 return _one_line(exc)
+            except yaml.YAMLError as exc:
+                if os.environ.get("HYDRA_FULL_ERROR") == "1":
+                    raise
+                return _yaml_line(exc)
+            except Exception as exc:  # a bug, not a user error: one line unless --verbose
+                if os.environ.get("HYDRA_FULL_ERROR") == "1":
+                    raise
+                return f"{type(exc).__name__}: {_one_line(exc)}"
     return None
+
+
+def _yaml_line(exc: BaseException) -> str:
+    """``<file>:<line>:<col>: <problem>`` for a YAML syntax error in a config file."""
+    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    context = getattr(exc, "context", None)
+    where = f"{mark.name}:{mark.line + 1}:{mark.column + 1}" if mark else "config"
+    return f"{where}: YAML syntax error: {problem}" + (f" ({context})" if context else "")
 
 
 def _compose_extra(base: Sequence[str], extra: Sequence[str]):  # noqa: ANN202
@@ -189,14 +217,16 @@ def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's si
         if not expected and os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise
         print(f"ccm: run failed: {message} [{out_dir}]", file=sys.stderr)
-        if hc.mode == RunMode.MULTIRUN:
-            raise RunFailed(message) from None
+        if hc.mode == RunMode.MULTIRUN:  # Hydra goes on with the sweep; cmd_run exits 1
+            _FAILED_JOBS.append(message)
+            return
         sys.exit(EXIT_FAILED)
     _print_summary(summary, out_dir)
 
 
-class RunFailed(RuntimeError):
-    """A job of a sweep failed; Hydra finishes the sweep and then exits non-zero."""
+#: Failed jobs of the current sweep (the basic launcher runs them in this process). Raising
+#: instead would make Hydra print "Error executing job ..." and a traceback per failure.
+_FAILED_JOBS: list[str] = []
 
 
 def _print_summary(summary: dict, out_dir: Path) -> None:
@@ -239,11 +269,12 @@ def cmd_run(args: Sequence[str]) -> int:
     app = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_job)
     saved = sys.argv
     sys.argv = ["ccm run", *args]
+    _FAILED_JOBS.clear()
     try:
         app()
     finally:
         sys.argv = saved
-    return 0
+    return EXIT_FAILED if _FAILED_JOBS else 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -259,7 +290,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         return cmd_list()
     if argv[0] == "run":
         return cmd_run(argv[1:])
-    return _fail(f"unknown command {argv[0]!r}; allowed: run, list, --help", EXIT_CONFIG)
+    if argv[0] == "report":
+        from ccm.errors import ConfigError
+        from ccm.report import main as report
+
+        try:
+            return report(argv[1:])
+        except ConfigError as exc:
+            return _fail(str(exc), EXIT_CONFIG)
+    return _fail(f"unknown command {argv[0]!r}; allowed: run, list, report, --help", EXIT_CONFIG)
 
 
 if __name__ == "__main__":

@@ -195,6 +195,10 @@ def trial_seed(seed: int, trial: int) -> int:
 def check_experiment(cfg: DictConfig) -> dict[str, Any]:
     """Validate the ``experiment`` and ``metrics`` groups; return the settings the loop uses."""
     exp = cfg.experiment
+    kind = exp.get("kind", "trials")
+    if kind != "trials" and kind not in ANALYSES:
+        allowed = ", ".join(("trials", *ANALYSES))
+        raise ConfigError("experiment.kind", f"must be one of {allowed}, got {kind!r}")
     fast = bool(exp.get("fast", False))
     trials = check_int_positive("experiment.trials", exp.get("trials", 1))
     max_time = exp.get("max_time_s")

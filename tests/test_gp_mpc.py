@@ -207,3 +207,22 @@ def test_force_delay_shifts_the_admittance_response() -> None:
             v.append(ctrl._v_ref[0])
         responses.append(np.flatnonzero(np.array(v) > 0)[0])
     assert responses == [2, 5]
+
+
+@pytest.mark.parametrize(
+    ("mpc", "key"),
+    [
+        ({"weights": {"nope": 1.0}}, "controller.mpc.weights.nope"),
+        ({"weights": {"vel": -1.0}}, "controller.mpc.weights.vel"),
+        ({"chance": {"fmax": 1.0}}, "controller.mpc.chance.fmax"),
+        ({"chance": {"epsilon": 1.5}}, "controller.mpc.chance.epsilon"),
+        ({"chance": {"quantile": "erf"}}, "controller.mpc.chance.quantile"),
+        ({"disturbance": {"alpha": 1.0, "beta": 2.0}}, "controller.mpc.disturbance.beta"),
+        ({"horizons": 5}, "controller.mpc.horizons"),
+    ],
+)
+def test_controller_checks_mpc_settings_at_construction(mpc: dict, key: str) -> None:
+    """Bad MPC settings fail when the controller is built, not after the demonstrations."""
+    with pytest.raises(ConfigError) as err:
+        GPMPC(mpc=mpc)
+    assert key in str(err.value)

@@ -313,5 +313,5 @@ def test_chance_margin_numpy_and_casadi() -> None:
     mu = ca.MX.sym("mu", 2)
     fun = ca.Function("m", [mu], [chance_margin(mu, ca.DM(var), 12.0, 0.05)])
     np.testing.assert_allclose(np.array(fun(mean)).ravel(), margin, rtol=1e-12)
-    with pytest.raises(ConfigError, match="form"):
+    with pytest.raises(ConfigError, match="quantile"):
         chance_quantile(0.1, "erf")

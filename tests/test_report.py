@@ -88,3 +88,14 @@ def test_bad_report_input(tmp_path: Path) -> None:
         main([str(tmp_path / "missing")])
     with pytest.raises(ConfigError, match="usage"):
         main([])
+
+
+def test_cli_report_command(sweep: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from ccm.cli import main as ccm_main
+
+    claims = str(sweep.parent / "claims.yaml")
+    assert ccm_main(["report", str(sweep), "--claims", claims]) == 0
+    assert (sweep / "report.html").is_file()
+    assert ccm_main(["report", str(tmp_path / "missing")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("ccm: error: report.dir")

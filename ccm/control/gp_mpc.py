@@ -101,6 +101,9 @@ class GPMPC(Controller):
             self.mpc_cfg: dict[str, Any] | None = {} if mpc else None
         elif isinstance(mpc, Mapping):
             self.mpc_cfg = dict(mpc)
+            from ccm.control.gp_mpc_problem import check_settings
+
+            check_settings(self.mpc_cfg, f"{key}.mpc")
         else:
             raise ConfigError(f"{key}.mpc", "must be a mapping of MPC settings or false")
         self.mpc_period_s = check_positive(f"{key}.mpc_period_s", mpc_period_s)
@@ -188,7 +191,7 @@ class GPMPC(Controller):
             gps.fit(data[idx, : self.dim], data[idx, self.dim :])
             self.models.append(gps)
         cfg = dict(self.mpc_cfg or {})
-        weights = Weights(**(cfg.pop("weights", None) or {}))
+        weights = Weights(**(cfg.pop("weights", None) or {}))  # keys checked in __init__
         self._problem = GPMPCProblem(
             [g.casadi_functions() for g in self.models], self.dim, weights=weights,
             key=f"{self.key}.mpc", **cfg,

@@ -81,6 +81,51 @@ class MPCSolution:
     predicted: np.ndarray  # (N_modes, H+1, 2n) predicted means, row 0 = ξ_t
 
 
+def _only(key: str, block: Mapping[str, Any], allowed: Sequence[str]) -> None:
+    """Reject keys of an option block that are not in ``allowed``."""
+    if not isinstance(block, Mapping):
+        raise ConfigError(key, f"must be a mapping with keys {', '.join(allowed)}")
+    for name in block:
+        if name not in allowed:
+            raise ConfigError(f"{key}.{name}", f"unknown key; allowed: {', '.join(allowed)}")
+
+
+def check_settings(cfg: Mapping[str, Any], key: str = "controller.mpc") -> None:
+    """Validate the ``controller.mpc`` block before any model exists (one clear error at
+    start-up instead of after the demonstrations): the same checks as the constructor."""
+    import inspect
+
+    params = inspect.signature(GPMPCProblem.__init__).parameters
+    allowed = [p for p in params if p not in ("self", "gp_modes", "n", "key")]
+    _only(key, cfg, allowed)
+    kw = dict(cfg)
+    weights = kw.pop("weights", None) or {}
+    _only(f"{key}.weights", weights, list(Weights.__dataclass_fields__))
+    for name, val in weights.items():
+        check_nonneg(f"{key}.weights.{name}", val)
+    probe = GPMPCProblem.__new__(GPMPCProblem)
+    probe.key, probe.n = key, 2
+    check_int_positive(f"{key}.horizon", kw.get("horizon", 10))
+    check_positive(f"{key}.ts", kw.get("ts", 0.02))
+    for name in ("mass_bounds", "damping_bounds"):
+        if name in kw:
+            check_bounds(f"{key}.{name}", kw[name])
+    if "mass_bounds" in kw and check_bounds(f"{key}.mass_bounds", kw["mass_bounds"])[0] <= 0:
+        raise ConfigError(f"{key}.mass_bounds", "minimum mass must be > 0")
+    for name in ("delta_mass_max", "delta_damping_max", "continuity_slack"):
+        if name in kw:
+            check_nonneg(f"{key}.{name}", kw[name])
+    for name in ("f_ref_max", "f_ref_rate_max", "gp_var_scale"):
+        if name in kw:
+            check_positive(f"{key}.{name}", kw[name])
+    probe._chance_setup(kw.get("chance"))
+    probe._well_damped_setup(kw.get("well_damped"))
+    if kw.get("joint_torque"):
+        probe._joint_torque_setup(kw["joint_torque"])
+    if kw.get("disturbance"):
+        _only(f"{key}.disturbance", kw["disturbance"], ("alpha", "omega_p"))
+
+
 def _vec(key: str, value: Any, n: int) -> np.ndarray:
     arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
     if not np.all(np.isfinite(arr)):
@@ -197,6 +242,7 @@ class GPMPCProblem:
         cost += self.w.delta_mass * ca.sumsqr(dm) + self.w.delta_damping * ca.sumsqr(dd)
         if self.w.disturbance > 0.0:  # Eq. 16-17, per DOF, K dropped (§3.2)
             dist = disturbance or {}
+            _only(f"{key}.disturbance", dist, ("alpha", "omega_p"))
             alpha = check_positive(f"{key}.disturbance.alpha", dist.get("alpha", 1.0))
             omega = check_positive(
                 f"{key}.disturbance.omega_p", dist.get("omega_p", 2 * np.pi * 15)
@@ -268,15 +314,19 @@ class GPMPCProblem:
         if not chance:
             return None
         k = f"{self.key}.chance"
+        _only(k, chance, ("f_max", "epsilon", "quantile"))
         self._f_max = check_positive(f"{k}.f_max", chance.get("f_max", 12.0))
         return float(
-            chance_quantile(chance.get("epsilon", 0.5), form=chance.get("quantile", "normal"))
+            chance_quantile(
+                chance.get("epsilon", 0.5), form=chance.get("quantile", "normal"), key=k
+            )
         )
 
     def _well_damped_setup(self, wd: Mapping[str, Any] | None) -> dict[str, Any] | None:
         if not wd:
             return None
         k = f"{self.key}.well_damped"
+        _only(k, wd, ("zeta", "stiffness", "fixed_stiffness"))
         zeta = check_positive(f"{k}.zeta", wd.get("zeta", 1.2))
         source = wd.get("stiffness", "gp_gradient")
         if source not in ("gp_gradient", "fixed"):
@@ -291,6 +341,7 @@ class GPMPCProblem:
     def _joint_torque_setup(self, jt: Mapping[str, Any] | None) -> Any:
         k = f"{self.key}.joint_torque"
         jt = dict(jt or {})
+        _only(k, jt, ("shoulder", "l1", "l2", "z"))
         shoulder = _vec(f"{k}.shoulder", jt.get("shoulder", (0.0, -0.4, 0.3)), 3)
         l1 = check_positive(f"{k}.l1", jt.get("l1", 0.30))
         l2 = check_positive(f"{k}.l2", jt.get("l2", 0.35))

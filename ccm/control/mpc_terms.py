@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import ConfigError, check_choice, check_nonneg
+from ccm.errors import ConfigError, check_choice, check_finite, check_nonneg
 
 # Arm segment lengths [m] assumed by ccm (seed B gives none): rough adult values, the upper
 # arm shoulder-to-elbow and the forearm elbow-to-grip (forearm plus half the hand).
@@ -354,7 +354,7 @@ def belief_update(
     return post
 
 
-def chance_quantile(epsilon: float, form: str = "normal") -> float:
+def chance_quantile(epsilon: float, form: str = "normal", key: str = "mpc.chance") -> float:
     """The factor q of Prob{f ≤ f̄} ≥ 1 − ε ⇔ μ_f + q σ_f ≤ f̄ for f ~ N(μ_f, σ_f²) (Eq. 18).
 
     ``form="normal"`` (default) is the standard-normal quantile q = Φ⁻¹(1 − ε) =
@@ -367,11 +367,12 @@ def chance_quantile(epsilon: float, form: str = "normal") -> float:
     Args:
         epsilon: allowed violation probability ε in (0, 1).
         form: "normal" or "paper_erfinv".
+        key: configuration-key prefix for errors.
     """
-    form = check_choice("mpc.chance.form", form, ("normal", "paper_erfinv"))
-    eps = float(epsilon)
+    form = check_choice(f"{key}.quantile", form, ("normal", "paper_erfinv"))
+    eps = check_finite(f"{key}.epsilon", epsilon)
     if not 0.0 < eps < 1.0:
-        raise ConfigError("mpc.chance.epsilon", f"must be in (0, 1), got {epsilon!r}")
+        raise ConfigError(f"{key}.epsilon", f"must be in (0, 1), got {epsilon!r}")
     if form == "normal":
         return NormalDist().inv_cdf(1.0 - eps)
     # erf⁻¹(y) = Φ⁻¹((1 + y)/2) / √2
