@@ -208,8 +208,15 @@ def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's si
     hc = HydraConfig.get()
     out_dir = Path(hc.runtime.output_dir)
     task_overrides = list(hc.overrides.task)
+    from threadpoolctl import threadpool_limits
+
     try:
-        summary = run_experiment(cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir)
+        # one BLAS thread per job (cfg.blas_threads): parallel sweep workers must not
+        # oversubscribe the cores, and the same count everywhere keeps results identical
+        with threadpool_limits(limits=int(cfg.get("blas_threads") or 1)):
+            summary = run_experiment(
+                cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir
+            )
     except Exception as exc:
         expected = isinstance(exc, ConfigError | SimulationDiverged)
         message = str(exc) if expected else f"{type(exc).__name__}: {exc}"
@@ -217,16 +224,10 @@ def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's si
         if not expected and os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise
         print(f"ccm: run failed: {message} [{out_dir}]", file=sys.stderr)
-        if hc.mode == RunMode.MULTIRUN:  # Hydra goes on with the sweep; cmd_run exits 1
-            _FAILED_JOBS.append(message)
+        if hc.mode == RunMode.MULTIRUN:  # Hydra goes on; SweepCheck makes cmd_run exit 1
             return
         sys.exit(EXIT_FAILED)
     _print_summary(summary, out_dir)
-
-
-#: Failed jobs of the current sweep (the basic launcher runs them in this process). Raising
-#: instead would make Hydra print "Error executing job ..." and a traceback per failure.
-_FAILED_JOBS: list[str] = []
 
 
 def _print_summary(summary: dict, out_dir: Path) -> None:
@@ -269,12 +270,14 @@ def cmd_run(args: Sequence[str]) -> int:
     app = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_job)
     saved = sys.argv
     sys.argv = ["ccm run", *args]
-    _FAILED_JOBS.clear()
+    from ccm import sweep_check
+
+    sweep_check.FAILED_JOBS.clear()
     try:
         app()
     finally:
         sys.argv = saved
-    return EXIT_FAILED if _FAILED_JOBS else 0
+    return EXIT_FAILED if sweep_check.FAILED_JOBS else 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
