@@ -200,6 +200,7 @@ def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's si
     """The Hydra task function: run the experiment, or record the failure and exit non-zero."""
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
+    from threadpoolctl import threadpool_limits
 
     from ccm.errors import ConfigError, SimulationDiverged
     from ccm.records import write_json_atomic
@@ -208,7 +209,11 @@ def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's si
     hc = HydraConfig.get()
     out_dir = Path(hc.runtime.output_dir)
     task_overrides = list(hc.overrides.task)
-    from threadpoolctl import threadpool_limits
+    done = _finished(out_dir)
+    if done is not None:  # resume: a finished run is never redone or overwritten
+        print(f"ccm: {done.get('experiment')} already ok -> {out_dir} (skipped; delete the "
+              "directory to run it again)")  # fmt: skip
+        return
 
     try:
         # one BLAS thread per job (cfg.blas_threads): parallel sweep workers must not
@@ -228,6 +233,15 @@ def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's si
             return
         sys.exit(EXIT_FAILED)
     _print_summary(summary, out_dir)
+
+
+def _finished(out_dir: Path) -> dict | None:
+    """The summary of a run directory that already holds an ``ok`` run, else None."""
+    try:
+        summary = json.loads((out_dir / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return None
+    return summary if isinstance(summary, dict) and summary.get("status") == "ok" else None
 
 
 def _print_summary(summary: dict, out_dir: Path) -> None:

@@ -35,7 +35,7 @@ def test_presets_reproduce_the_in_process_sweep(launcher: str, tmp_path: Path) -
     )
     assert base.returncode == 0 and other.returncode == 0, other.stderr[-500:]
     a, b = _summaries(tmp_path / "basic"), _summaries(tmp_path / launcher)
-    assert sorted(a) == ["0", "1"] and a == b  # byte-identical per seed
+    assert len(a) == 2 and a == b  # the same job directories, byte-identical summaries
 
 
 def test_failed_job_in_a_parallel_sweep_exits_nonzero(tmp_path: Path) -> None:
