@@ -41,12 +41,21 @@ class SensorConfig:
         torque_noise_std: Gaussian noise std per torque axis [N m], shape (r,).
         force_bias: constant offset per force axis [N], shape (n,).
         torque_bias: constant offset per torque axis [N m], shape (r,).
+        spike_prob, spike_N: fault injection (issue #8): with this probability per sample a
+            force spike of ±spike_N on every axis (random signs).
+        dropout_prob, dropout_steps: with this probability per sample the sensor stops
+            updating and repeats its last reading for dropout_steps samples.
+        Faults are off by default and consume no random numbers then.
     """
 
     force_noise_std: tuple[float, ...]
     torque_noise_std: tuple[float, ...]
     force_bias: tuple[float, ...]
     torque_bias: tuple[float, ...]
+    spike_prob: float = 0.0
+    spike_N: float = 0.0
+    dropout_prob: float = 0.0
+    dropout_steps: int = 0
 
     @property
     def force_dim(self) -> int:
@@ -71,9 +80,19 @@ class SensorConfig:
         force_dim: int = 2,
         torque_dim: int = 1,
         prefix: str = "sim.sensor",
+        spike_prob: float = 0.0,
+        spike_N: float = 0.0,
+        dropout_prob: float = 0.0,
+        dropout_steps: int = 0,
     ) -> SensorConfig:
         """Build from scalars (broadcast to every axis) or per-axis sequences, validating."""
+        from ccm.errors import check_int_nonneg, check_range
+
         return cls(
+            spike_prob=check_range(f"{prefix}.spike_prob", spike_prob, 0.0, 1.0),
+            spike_N=check_nonneg(f"{prefix}.spike_N", spike_N),
+            dropout_prob=check_range(f"{prefix}.dropout_prob", dropout_prob, 0.0, 1.0),
+            dropout_steps=check_int_nonneg(f"{prefix}.dropout_steps", dropout_steps),
             force_noise_std=_per_axis(
                 f"{prefix}.force_noise_std", force_noise_std, force_dim, True
             ),
@@ -95,7 +114,8 @@ class SensorConfig:
         """
         from ccm.sim.scene import as_plain, check_keys
 
-        allowed = ("force_noise_std", "torque_noise_std", "force_bias", "torque_bias")
+        allowed = ("force_noise_std", "torque_noise_std", "force_bias", "torque_bias",
+                   "spike_prob", "spike_N", "dropout_prob", "dropout_steps")  # fmt: skip
         d = as_plain(cfg, prefix)
         check_keys(prefix, d, allowed)
         return cls.from_values(
@@ -137,14 +157,27 @@ class FTSensor:
         self._t_bias = np.array(self.config.torque_bias)
         self._noisy_force = bool(np.any(self._f_std > 0.0))
         self._noisy_torque = bool(np.any(self._t_std > 0.0))
-        self._ideal = not (
-            self._noisy_force or self._noisy_torque or np.any(self._f_bias) or np.any(self._t_bias)
+        c = self.config
+        self._faults = (c.spike_prob > 0 and c.spike_N > 0) or (
+            c.dropout_prob > 0 and c.dropout_steps > 0
+        )
+        self._ideal = (
+            not (
+                self._noisy_force
+                or self._noisy_torque
+                or np.any(self._f_bias)
+                or np.any(self._t_bias)
+            )
+            and not self._faults
         )
         self._rng: np.random.Generator | None = None
+        self._held: tuple[np.ndarray, np.ndarray] | None = None
+        self._hold_left = 0
 
     def reset(self, rng: np.random.Generator) -> None:
         """Use ``rng`` for all later noise draws (the simulator seeds it at its reset)."""
         self._rng = rng
+        self._held, self._hold_left = None, 0
 
     def measure(self, force: np.ndarray, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return the measured ``(force, torque)`` for the true external wrench.
@@ -176,4 +209,23 @@ class FTSensor:
                 f = f + self._rng.normal(0.0, 1.0, self.force_dim) * self._f_std
             if self._noisy_torque:
                 t = t + self._rng.normal(0.0, 1.0, self.torque_dim) * self._t_std
+        if self._faults:
+            return self._fault(f, t)
+        return f, t
+
+    def _fault(self, f: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Spikes and dropouts (held last reading) on top of the noisy measurement."""
+        if self._rng is None:
+            raise RuntimeError("FTSensor.reset(rng) must be called before a faulty measure()")
+        c = self.config
+        u_spike, u_drop = self._rng.random(2)
+        signs = self._rng.choice((-1.0, 1.0), self.force_dim)
+        if self._hold_left > 0 and self._held is not None:
+            self._hold_left -= 1
+            return self._held[0].copy(), self._held[1].copy()
+        if u_spike < c.spike_prob:
+            f = f + c.spike_N * signs
+        if u_drop < c.dropout_prob and c.dropout_steps > 0:
+            self._hold_left = c.dropout_steps
+        self._held = (f.copy(), t.copy())
         return f, t

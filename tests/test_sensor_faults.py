@@ -1,0 +1,67 @@
+"""F/T sensor faults (issue #8 reliability): noise x10, spikes and dropouts held at the last
+reading leave no NaN, keep AVIC's stiffness inside [K_free, K_max], and the run completes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ccm.errors import ConfigError
+from ccm.records import read_csv
+from ccm.runner import run_experiment
+from ccm.sim.sensor import FTSensor, SensorConfig
+
+FAULTS = [
+    "sim.sensor.force_noise_std=0.5",  # x10 the 0.05 N the H1/H2 experiments use
+    "+sim.sensor.spike_prob=0.01",
+    "+sim.sensor.spike_N=20.0",
+    "+sim.sensor.dropout_prob=0.005",
+    "+sim.sensor.dropout_steps=20",
+]
+
+
+def test_avic_survives_sensor_faults(composer, tmp_path: Path) -> None:
+    overrides = ["experiment=single", "controller=avic", "task=multi_spring",
+                 "experiment.figures=false", "experiment.max_time_s=3.0", *FAULTS]  # fmt: skip
+    cfg = composer(overrides)
+    summary = run_experiment(cfg, lambda extra: composer([*overrides, *extra]), tmp_path, False)
+    assert summary["status"] == "ok"
+    log = read_csv(next((tmp_path / "timeseries").rglob("trial_001.csv")))
+    for name, col in log.items():  # pred_* are NaN by design until a first prediction
+        assert np.all(np.isfinite(col[2:] if name.startswith("pred_") else col)), name
+    k = log["stiffness_Npm"]
+    assert k.min() >= 300.0 - 1e-9 and k.max() <= 3000.0 + 1e-9
+    # the faults did happen: measured force jumps by ~20 N and repeats exactly while held
+    f = log["force_x"]
+    assert np.abs(np.diff(f)).max() > 15.0
+    assert np.any((np.diff(f) == 0.0) & (np.diff(log["force_y"]) == 0.0))
+
+
+def test_fault_model() -> None:
+    cfg = SensorConfig.from_values(spike_prob=0.05, spike_N=10.0, dropout_prob=0.02,
+                                   dropout_steps=5)  # fmt: skip
+    s = FTSensor(cfg)
+    s.reset(np.random.default_rng(0))
+    out = np.array([s.measure(np.array([float(i), 0.0]), np.zeros(1))[0] for i in range(2000)])
+    err = out[:, 0] - np.arange(2000)
+    spikes = np.isclose(np.abs(out[:, 1]), 10.0)
+    assert 50 < spikes.sum() < 150  # ~5 % of samples carry a spike, on every axis
+    held = np.flatnonzero(np.diff(out[:, 0]) == 0.0)
+    assert held.size > 50  # dropouts repeat the previous reading
+    assert np.all(np.abs(err[~spikes & (np.r_[False, np.diff(out[:, 0]) != 0.0])]) < 1e-12)
+    ideal = FTSensor(SensorConfig.from_values())
+    ideal.reset(np.random.default_rng(0))  # faults off: no random numbers, exact values
+    assert ideal.measure(np.array([1.0, 2.0]), np.zeros(1))[0].tolist() == [1.0, 2.0]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "key"),
+    [({"spike_prob": 1.5}, "sim.sensor.spike_prob"), ({"spike_N": -1.0}, "sim.sensor.spike_N"),
+     ({"dropout_steps": -2}, "sim.sensor.dropout_steps")],
+)  # fmt: skip
+def test_bad_fault_settings(kwargs: dict, key: str) -> None:
+    with pytest.raises(ConfigError) as err:
+        SensorConfig.from_values(**kwargs)
+    assert key in str(err.value)
