@@ -7,7 +7,7 @@ print one line and exit non-zero (DESIGN.md, "Errors a user can cause").
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -91,6 +91,15 @@ def check_choice(key: str, value: Any, allowed: Iterable[str]) -> str:
     return str(value)
 
 
+def check_keys(key: str, cfg: Mapping[str, Any], allowed: Iterable[str]) -> None:
+    """Reject keys of ``cfg`` not in ``allowed``; the error names ``<key>.<name>`` and the
+    options (the first unknown key in the mapping's order)."""
+    options = list(allowed)
+    for name in cfg:
+        if name not in options:
+            raise ConfigError(f"{key}.{name}", f"unknown key; allowed: {', '.join(options)}")
+
+
 def check_vector(key: str, value: Any, dim: int | Sequence[int]) -> np.ndarray:
     """Return ``value`` as a finite float vector whose length is ``dim`` (or one of them)."""
     dims = (dim,) if isinstance(dim, int) else tuple(dim)
@@ -114,13 +123,8 @@ def constructor_kwargs(cls: type, cfg: Any, key: str) -> dict[str, Any]:
     import inspect
 
     allowed = [p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "key")]
-    out: dict[str, Any] = {}
-    for name, value in dict(cfg).items():
-        if name in ("type", "description"):
-            continue
-        if name not in allowed:
-            raise ConfigError(f"{key}.{name}", f"unknown key; allowed: {', '.join(allowed)}")
-        out[name] = value
+    out = {k: v for k, v in dict(cfg).items() if k not in ("type", "description")}
+    check_keys(key, out, allowed)
     return out
 
 
@@ -143,7 +147,5 @@ def config_block(cfg: Any, name: str, allowed: Sequence[str]) -> dict[str, Any]:
     block = OmegaConf.to_container(cfg.get(name) or {}, resolve=True)
     if not isinstance(block, dict):
         raise ConfigError(name, f"must be a mapping, got {type(block).__name__}")
-    for k in block:
-        if k not in allowed:
-            raise ConfigError(f"{name}.{k}", f"unknown key; allowed: {', '.join(allowed)}")
+    check_keys(name, block, allowed)
     return block

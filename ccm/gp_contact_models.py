@@ -49,6 +49,7 @@ from ccm.errors import (
     check_finite,
     check_int_nonneg,
     check_int_positive,
+    check_keys,
     check_nonneg,
     check_positive,
     config_block,
@@ -80,11 +81,7 @@ def _settings(cfg: DictConfig) -> dict[str, Any]:
         sub = s.get(name)
         if not isinstance(sub, dict):
             raise ConfigError(f"gp_contact.{name}", f"must be a mapping of {', '.join(keys)}")
-        for k in sub:
-            if k not in keys:
-                raise ConfigError(
-                    f"gp_contact.{name}.{k}", f"unknown key; allowed: {', '.join(keys)}"
-                )
+        check_keys(f"gp_contact.{name}", sub, keys)
     s["demos"] = check_int_positive("gp_contact.demos", s.get("demos"))
     for k in ("duration_s", "record_hz", "start_distance_m", "contact_window_m"):
         s[k] = check_positive(f"gp_contact.{k}", s.get(k))

@@ -235,7 +235,7 @@ C0, C1 = "task.contacts[0]", "task.contacts[1]"
     [
         (dict(BASE_TASK, contacts={"name": "a"}), "task.contacts", "must be a list"),
         (dict(BASE_TASK, contacts=[[0.0, 0.0]]), C0, "mapping"),
-        (_with_contacts((0, "size", 1.0)), C0, "'size'; allowed: name, position, kind"),
+        (_with_contacts((0, "size", 1.0)), f"{C0}.size", "allowed: name, position, kind"),
         (_with_contacts((1, "name", None)), f"{C1}.name", "missing"),
         (_with_contacts((0, "name", "")), f"{C0}.name", "non-empty"),
         (_with_contacts((1, "name", "floor")), f"{C1}.name", "duplicate"),

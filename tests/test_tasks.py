@@ -171,7 +171,7 @@ def _bad(**changes: Any) -> dict[str, Any]:
 @pytest.mark.parametrize(
     ("cfg", "key", "fragment"),
     [
-        (_bad(speed=1.0), "task", "'speed'; allowed: name, description, dim"),
+        (_bad(speed=1.0), "task.speed", "unknown key; allowed: name, description, dim"),
         (_bad(name=None), "task.name", "missing"),
         (_bad(pattern=None), "task.pattern", "missing"),
         (_bad(scene=None), "task.scene", "missing"),

@@ -315,8 +315,8 @@ _DROP = object()
         ([3], "task.pattern[0]", "mapping"),
         (_with(1, type="spiral"), "task.pattern[1].type", "allowed: line, arc, hold"),
         (_with(0, type=_DROP), "task.pattern[0].type", "missing"),
-        (_with(1, speed=2), "task.pattern[1]", "'speed'; allowed: type, duration"),
-        (_with(0, center=[0, 0]), "task.pattern[0]", "'center'"),
+        (_with(1, speed=2), "task.pattern[1].speed", "unknown key; allowed: type, duration"),
+        (_with(0, center=[0, 0]), "task.pattern[0].center", "unknown key"),
         (_with(0, to=[0.1, 0.0, 0.0]), "task.pattern[0].to", "length 2"),
         (_with(0, to=_DROP), "task.pattern[0].to", "missing"),
         (_with(1, duration=-1), "task.pattern[1].duration", "must be > 0, got -1"),
@@ -347,8 +347,8 @@ _DROP = object()
         (_with(0, force={"direction": [0, 1]}), "task.pattern[0].force.magnitude", "missing"),
         (
             _with(0, force={"direction": [0, 1], "magnitude": 1, "gain": 2}),
-            "task.pattern[0].force",
-            "'gain'; allowed: direction, magnitude",
+            "task.pattern[0].force.gain",
+            "unknown key; allowed: direction, magnitude",
         ),
         (_with(0, force=5.0), "task.pattern[0].force", "mapping"),
         (

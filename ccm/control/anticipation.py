@@ -45,7 +45,7 @@ from ccm.control.avic import _OWN_KEYS as _AVIC_KEYS
 from ccm.control.contact_events import ContactEvents, TransitionWindow
 from ccm.control.impedance import FixedImpedance, impedance_term
 from ccm.control.modal import ModalAVIC
-from ccm.errors import ConfigError, check_nonneg, check_positive, constructor_kwargs
+from ccm.errors import ConfigError, check_keys, check_nonneg, check_positive, constructor_kwargs
 from ccm.learn.collisions import CollisionDetector
 from ccm.learn.contacts import ContactMap
 from ccm.tasks.retiming import RetimedPattern, TimeWarp
@@ -84,9 +84,7 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         super().__init__(**modal)
         key = f"{modal.get('key', 'controller')}.anticipation"
         a = dict(anticipation or {})
-        for k in a:
-            if k not in _KEYS:
-                raise ConfigError(f"{key}.{k}", f"unknown key; allowed: {', '.join(_KEYS)}")
+        check_keys(key, a, _KEYS)
         self.ant_key = key
         self.sigma_scale = check_positive(f"{key}.sigma_scale", a.get("sigma_scale", 3.0))
         self.min_region_m = check_nonneg(

@@ -34,7 +34,14 @@ import numpy as np
 from ccm.control.admittance import system_matrices
 from ccm.control.mpc_codegen import make_solver
 from ccm.control.mpc_terms import chance_quantile, disturbance_h2, joint_torque_cost
-from ccm.errors import ConfigError, check_bounds, check_int_positive, check_nonneg, check_positive
+from ccm.errors import (
+    ConfigError,
+    check_bounds,
+    check_int_positive,
+    check_keys,
+    check_nonneg,
+    check_positive,
+)
 
 GPFunctions = Mapping[str, ca.Function]  # "mean", "var", "grad" of one mode (gp_force.py)
 
@@ -85,9 +92,7 @@ def _only(key: str, block: Mapping[str, Any], allowed: Sequence[str]) -> None:
     """Reject keys of an option block that are not in ``allowed``."""
     if not isinstance(block, Mapping):
         raise ConfigError(key, f"must be a mapping with keys {', '.join(allowed)}")
-    for name in block:
-        if name not in allowed:
-            raise ConfigError(f"{key}.{name}", f"unknown key; allowed: {', '.join(allowed)}")
+    check_keys(key, block, allowed)
 
 
 def check_settings(cfg: Mapping[str, Any], key: str = "controller.mpc") -> None:

@@ -43,6 +43,7 @@ from ccm.errors import (
     check_choice,
     check_int_nonneg,
     check_int_positive,
+    check_keys,
     check_nonneg,
     check_positive,
     constructor_kwargs,
@@ -63,9 +64,7 @@ def _sub(m: Mapping[str, Any], name: str, allowed: tuple[str, ...], key: str) ->
         return {}
     if not isinstance(sub, Mapping):
         raise ConfigError(f"{key}.{name}", f"must be a mapping, got {type(sub).__name__}")
-    for k in sub:
-        if k not in allowed:
-            raise ConfigError(f"{key}.{name}.{k}", f"unknown key; allowed: {', '.join(allowed)}")
+    check_keys(f"{key}.{name}", sub, allowed)
     return dict(sub)
 
 
@@ -96,9 +95,7 @@ class ModalAVIC(AVIC):
             "sliding_speed", "min_mode_samples", "contact_loss_steps", "feature_lowpass_hz",
             "settle_time_constants",
         )  # fmt: skip
-        for k in m:
-            if k not in allowed:
-                raise ConfigError(f"{key}.{k}", f"unknown key; allowed: {', '.join(allowed)}")
+        check_keys(key, m, allowed)
         self.modes_key = key
         self.feature = check_choice(
             f"{key}.feature", m.get("feature", "force_ratio"), FEATURE_KINDS

@@ -29,6 +29,7 @@ from ccm.errors import (
     ConfigError,
     check_choice,
     check_finite,
+    check_keys,
     check_nonneg,
     check_positive,
     check_vector,
@@ -289,8 +290,7 @@ class ContactMap:
         for i, e in enumerate(expected_contacts):
             k = f"{key}.expected_contacts[{i}]"
             e = dict(e) if isinstance(e, Mapping) else {"position": e}
-            for name in sorted(set(e) - {"position", "kind", "name"}):
-                raise ConfigError(f"{k}.{name}", "unknown key; allowed: position, kind, name")
+            check_keys(k, e, ("position", "kind", "name"))
             pos = check_vector(f"{k}.position", e.get("position"), kwargs.get("dim", (2, 3)))
             kwargs.setdefault("dim", len(pos))
             kind = check_choice(f"{k}.kind", e.get("kind", "collision"), KINDS)

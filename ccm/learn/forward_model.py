@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import ConfigError, check_int_positive, check_positive
+from ccm.errors import ConfigError, check_int_positive, check_keys, check_positive
 
 N_STATE = 4
 N_EFFECT = 2
@@ -281,10 +281,7 @@ def make_forward_model(cfg: dict[str, Any], key: str = "controller.forward_model
     from ccm.errors import check_choice
 
     cfg = dict(cfg or {})
-    for name in cfg:
-        if name not in ("kind", "feature_scale", *FORWARD_MODELS):
-            allowed = ", ".join(("kind", "feature_scale", *FORWARD_MODELS))
-            raise ConfigError(f"{key}.{name}", f"unknown key; allowed: {allowed}")
+    check_keys(key, cfg, ("kind", "feature_scale", *FORWARD_MODELS))
     kind = check_choice(f"{key}.kind", cfg.get("kind", "igmm"), FORWARD_MODELS)
     scale = cfg.get("feature_scale", DEFAULT_SCALE)
     sub = dict(cfg.get(kind) or {})

@@ -19,12 +19,13 @@ from ccm.errors import (
     ConfigError,
     check_choice,
     check_int_positive,
+    check_keys,
     check_nonneg,
     check_positive,
     check_range,
     check_vector,
 )
-from ccm.sim.scene import as_plain, check_bool, check_keys
+from ccm.sim.scene import as_plain, check_bool
 from ccm.sim.sensor import SensorConfig
 
 #: Franka's documented "ready" pose, used as IK seed and default rest posture [rad]

@@ -50,12 +50,13 @@ from ccm.errors import (
     ConfigError,
     SimulationDiverged,
     check_int_positive,
+    check_keys,
     check_positive,
     check_vector,
 )
 from ccm.sim.base import Simulator
 from ccm.sim.hri_forces import HRIForces
-from ccm.sim.scene import SceneSpec, as_plain, check_bool, check_keys
+from ccm.sim.scene import SceneSpec, as_plain, check_bool
 from ccm.sim.sensor import FTSensor, SensorConfig
 from ccm.types import Command, Observation, StepInfo
 

@@ -23,6 +23,7 @@ from ccm.errors import (
     ConfigError,
     check_choice,
     check_finite,
+    check_keys,
     check_nonneg,
     check_positive,
     check_range,
@@ -58,14 +59,6 @@ def as_plain(cfg: Any, key: str) -> dict[str, Any]:
     if not isinstance(cfg, Mapping):
         raise ConfigError(key, f"must be a mapping, got {type(cfg).__name__}")
     return dict(cfg)
-
-
-def check_keys(key: str, cfg: Mapping[str, Any], allowed: Iterable[str]) -> None:
-    """Reject keys of ``cfg`` that are not in ``allowed``, naming the bad key and the options."""
-    options = list(allowed)
-    for name in cfg:
-        if name not in options:
-            raise ConfigError(f"{key}.{name}", f"unknown key; allowed: {', '.join(options)}")
 
 
 def check_bool(key: str, value: Any) -> bool:

@@ -26,7 +26,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from ccm.errors import ConfigError, check_nonneg, check_positive
+from ccm.errors import ConfigError, check_keys, check_nonneg, check_positive
 
 if TYPE_CHECKING:
     from ccm.sim.scene import RegionSpec
@@ -68,7 +68,7 @@ class CompliantWallSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> CompliantWallSpec:
-        from ccm.sim.scene import _vec2, as_plain, check_keys
+        from ccm.sim.scene import _vec2, as_plain
 
         d = as_plain(cfg, key)
         check_keys(key, d, ("point", "normal", "stiffness", "damping", "position_jitter_m"))
@@ -120,7 +120,7 @@ class HumanSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> HumanSpec:
-        from ccm.sim.scene import _list, _vec2, as_plain, check_keys
+        from ccm.sim.scene import _list, _vec2, as_plain
 
         d = as_plain(cfg, key)
         check_keys(key, d, (
@@ -176,7 +176,7 @@ class VibrationSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> VibrationSpec:
-        from ccm.sim.scene import RegionSpec, _vec2, as_plain, check_keys
+        from ccm.sim.scene import RegionSpec, _vec2, as_plain
 
         d = as_plain(cfg, key)
         check_keys(key, d, ("amplitude", "frequency_hz", "region", "noise_std"))

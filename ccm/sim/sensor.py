@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import ConfigError, check_finite, check_nonneg, check_vector
+from ccm.errors import ConfigError, check_finite, check_keys, check_nonneg, check_vector
 
 
 def _per_axis(key: str, value: Any, dim: int, nonneg: bool) -> tuple[float, ...]:
@@ -112,7 +112,7 @@ class SensorConfig:
         Raises:
             ConfigError: on unknown keys, negative std or wrong vector lengths.
         """
-        from ccm.sim.scene import as_plain, check_keys
+        from ccm.sim.scene import as_plain
 
         allowed = ("force_noise_std", "torque_noise_std", "force_bias", "torque_bias",
                    "spike_prob", "spike_N", "dropout_prob", "dropout_steps")  # fmt: skip

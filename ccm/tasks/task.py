@@ -16,8 +16,8 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from ccm.errors import ConfigError, check_choice, check_vector
-from ccm.tasks.trajectory import MotionPattern, _check_keys, build_pattern
+from ccm.errors import ConfigError, check_choice, check_keys, check_vector
+from ccm.tasks.trajectory import MotionPattern, build_pattern
 
 __all__ = ["CONTACT_KINDS", "TASK_KEYS", "Task", "load_task"]
 
@@ -151,7 +151,7 @@ def _load_contacts(
         k = f"{key}[{i}]"
         if not isinstance(entry, Mapping):
             raise ConfigError(k, f"must be a mapping with keys {', '.join(_CONTACT_KEYS)}")
-        _check_keys(k, entry, _CONTACT_KEYS)
+        check_keys(k, entry, _CONTACT_KEYS)
         name = _required_and_name(k, entry, _CONTACT_REQUIRED)
         if name in seen:
             raise ConfigError(f"{k}.name", f"duplicate contact name {name!r}")
@@ -191,12 +191,7 @@ def load_task(
         ConfigError: on unknown or missing keys and invalid values, naming the full key.
     """
     cfg = _to_dict(key, task_cfg)
-    unknown = [str(k) for k in cfg if k not in TASK_KEYS]
-    if unknown:
-        raise ConfigError(
-            key,
-            f"unknown key(s) {', '.join(map(repr, unknown))}; allowed: {', '.join(TASK_KEYS)}",
-        )
+    check_keys(key, cfg, TASK_KEYS)
     name = _required_and_name(key, cfg, _REQUIRED)
     description = cfg.get("description") or ""
     if not isinstance(description, str):

@@ -31,6 +31,7 @@ from ccm.errors import (
     ConfigError,
     check_finite,
     check_int_positive,
+    check_keys,
     check_nonneg,
     check_positive,
     check_vector,
@@ -520,14 +521,6 @@ _TYPE_KEYS: dict[str, tuple[str, ...]] = {
 _FORCE_KEYS = ("direction", "magnitude")
 
 
-def _check_keys(key: str, entry: Mapping[str, Any], allowed: Sequence[str]) -> None:
-    unknown = [str(k) for k in entry if k not in allowed]
-    if unknown:
-        raise ConfigError(
-            key, f"unknown key(s) {', '.join(map(repr, unknown))}; allowed: {', '.join(allowed)}"
-        )
-
-
 def _require(key: str, entry: Mapping[str, Any], name: str) -> Any:
     if name not in entry or entry[name] is None:
         raise ConfigError(f"{key}.{name}", "missing (required)")
@@ -551,7 +544,7 @@ def _parse_force(key: str, value: Any, dim: int) -> tuple[np.ndarray | None, flo
         return None, 0.0
     if not isinstance(value, Mapping):
         raise ConfigError(key, f"must be a mapping with keys {', '.join(_FORCE_KEYS)}")
-    _check_keys(key, value, _FORCE_KEYS)
+    check_keys(key, value, _FORCE_KEYS)
     direction = _unit(f"{key}.direction", _require(key, value, "direction"), dim)
     magnitude = check_nonneg(f"{key}.magnitude", _require(key, value, "magnitude"))
     return direction, magnitude
@@ -612,7 +605,7 @@ def build_pattern(
         if kind not in _TYPES:
             shown = "missing" if kind is None else f"unknown value {kind!r}"
             raise ConfigError(f"{k}.type", f"{shown}; allowed: {', '.join(_TYPES)}")
-        _check_keys(k, entry, _COMMON_KEYS + _TYPE_KEYS[kind])
+        check_keys(k, entry, _COMMON_KEYS + _TYPE_KEYS[kind])
         duration = _parse_duration(k, entry, control_dt)
         force_dir, force_mag = _parse_force(f"{k}.force", entry.get("force"), dim)
         name = entry.get("name")
