@@ -7,7 +7,7 @@ ARGS ?=
 # the experiment `make run` runs: the headline one (seed A H4, Fig. 16); make run EXP=smoke is quicker
 EXP ?= h4_collisions
 
-.PHONY: setup run test test-slow lint format bench clean reproduce-paper reproduce-paper-quick
+.PHONY: setup run test test-slow lint format bench clean reproduce-paper reproduce-paper-quick browser
 
 setup: $(STAMP)
 
@@ -19,8 +19,20 @@ $(STAMP): pyproject.toml
 run: setup  ## the default experiment, $(EXP) (extra Hydra overrides: make run ARGS="seed=3")
 	$(BIN)/ccm run experiment=$(EXP) $(ARGS)
 
-test: setup  ## the default test suite (slow-marked checks excluded)
+test: setup browser  ## the default test suite (slow-marked checks excluded)
 	$(BIN)/python -m pytest -q
+
+# headless Chromium for the report render test (tests/test_report_render.py): Debian's
+# chromium package, installed when missing and apt-get runs as root; otherwise that test skips
+browser:
+	@command -v chromium >/dev/null 2>&1 || { \
+	  if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
+	    echo "installing Debian's chromium (for the report render test)"; \
+	    DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null 2>&1 || \
+	    { apt-get update -q >/dev/null 2>&1 && \
+	      DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null 2>&1; } || \
+	    echo "note: could not install chromium; the report render test will be skipped"; \
+	  else echo "note: chromium missing (needs apt-get as root); the report render test will be skipped"; fi; }
 
 test-slow: setup  ## only the slow-marked checks (every experiment in fast mode, …)
 	$(BIN)/python -m pytest -q -m slow
@@ -33,24 +45,15 @@ format: setup
 	$(BIN)/ruff format ccm tests
 	$(BIN)/ruff check --fix ccm tests
 
-# every paper experiment (claims in experiments/claims.yaml); seeds come from each experiment
-# config's hydra.sweeper.params; jobs run 2 at a time (hydra/launcher=local)
-PAPER_EXPS := h1_forward_model h1_adaptive_control h2_changing_surface h3_long_horizon \
-	h4_collisions h4_contact_learning h4_impactless mpc_convexity gp_contact_models \
-	mpc_contact mpc_rail mpc_polishing mpc_goal_inference contact_head_to_head
+# every paper experiment (claims in experiments/claims.yaml; the list is ccm.paper's) over the
+# seeds in its config's hydra.sweeper.params, two sweeps at a time, then ccm report
 PAPER_DIR ?= outputs/paper
 
 reproduce-paper: setup  ## all paper experiments over their seeds, then ccm report (resumable)
-	@status=0; for e in $(PAPER_EXPS); do \
-	  $(BIN)/ccm run -m experiment=$$e hydra/launcher=local hydra.sweep.dir=$(PAPER_DIR)/$$e \
-	    || status=1; \
-	done; $(BIN)/ccm report $(PAPER_DIR) || status=1; exit $$status
+	$(BIN)/ccm paper --out $(PAPER_DIR)
 
 reproduce-paper-quick: setup  ## the same pipeline with seed 0 and short trials (a smoke test)
-	@status=0; for e in $(PAPER_EXPS); do \
-	  $(BIN)/ccm run -m experiment=$$e seed=0 experiment.fast=true hydra/launcher=local \
-	    hydra.sweep.dir=$(PAPER_DIR)-quick/$$e || status=1; \
-	done; $(BIN)/ccm report $(PAPER_DIR)-quick || status=1; exit $$status
+	$(BIN)/ccm paper --quick --out $(PAPER_DIR)-quick
 
 bench: setup  ## speed table; also writes bench.json
 	$(BIN)/python -m ccm.bench --out bench.json

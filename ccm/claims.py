@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import ConfigError
+from ccm.errors import ConfigError, check_keys
 
 COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least")
 _CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment", "compare",
@@ -102,9 +102,7 @@ class Verdict:
 def _ref(key: str, d: Any) -> Ref:
     if not isinstance(d, Mapping):
         raise ConfigError(key, "must be a mapping {condition, metric[, trial]}")
-    unknown = set(d) - set(_REF_KEYS)
-    if unknown:
-        raise ConfigError(f"{key}.{sorted(unknown)[0]}", f"unknown key; allowed: {_REF_KEYS}")
+    check_keys(key, d, _REF_KEYS)
     for k in ("condition", "metric"):
         if not isinstance(d.get(k), str) or not d[k]:
             raise ConfigError(f"{key}.{k}", "is required (a non-empty string)")
@@ -118,9 +116,7 @@ def parse_claim(d: Any, key: str) -> Claim:
     """Validate one claim mapping; every error names its key."""
     if not isinstance(d, Mapping):
         raise ConfigError(key, "must be a mapping")
-    unknown = set(d) - set(_CLAIM_KEYS)
-    if unknown:
-        raise ConfigError(f"{key}.{sorted(unknown)[0]}", f"unknown key; allowed: {_CLAIM_KEYS}")
+    check_keys(key, d, _CLAIM_KEYS)
     for k in ("id", "paper", "source", "statement", "paper_value", "experiment", "compare"):
         if not isinstance(d.get(k), str | int | float) or d.get(k) == "":
             raise ConfigError(f"{key}.{k}", "is required")
@@ -189,12 +185,19 @@ def _margin(c: Claim, s: Mapping[str, Any]) -> tuple[float, float] | None:
     return a / b, c.value - a / b
 
 
+def t95(n: int) -> float:
+    """Two-sided 95 % Student-t quantile for the mean of ``n`` samples (NaN if n < 2)."""
+    if n < 2:
+        return math.nan
+    return _T95[n - 2] if n - 1 <= len(_T95) else 1.96
+
+
 def _mean_ci(x: Sequence[float]) -> tuple[float, float]:
+    """Mean and 95 % t-interval half-width; one seed: no interval (NaN)."""
     arr = np.asarray(x, dtype=float)
     if arr.size < 2:
-        return float(arr.mean()), 0.0
-    t = _T95[arr.size - 2] if arr.size - 1 <= len(_T95) else 1.96
-    return float(arr.mean()), float(t * arr.std(ddof=1) / math.sqrt(arr.size))
+        return float(arr.mean()), math.nan
+    return float(arr.mean()), float(t95(arr.size) * arr.std(ddof=1) / math.sqrt(arr.size))
 
 
 def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
@@ -215,11 +218,13 @@ def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
         return x > 0 if strict else x >= 0
 
     verdict = (
-        "reproduced" if holds(m_mean - m_ci)
+        "reproduced" if holds(m_mean - (0.0 if math.isnan(m_ci) else m_ci))
         else "partially" if holds(m_mean)
         else "not reproduced"
     )  # fmt: skip
     what = {"less_than": f"{claim.a} − {claim.b}", "ratio_at_most": f"{claim.a} / {claim.b}"}
     label = what.get(claim.compare, str(claim.a))
-    ours = f"{label} = {q_mean:.4g} ± {q_ci:.2g} (n = {len(margins)})"
-    return Verdict(claim, verdict, ours, q_mean, q_ci, len(margins))
+    n = len(margins)
+    spread = f"(n = {n}, one seed: no interval)" if n < 2 else f"± {q_ci:.2g} (n = {n})"
+    ours = f"{label} = {q_mean:.4g} {spread}"
+    return Verdict(claim, verdict, ours, q_mean, None if n < 2 else q_ci, n)

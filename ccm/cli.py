@@ -29,6 +29,8 @@ commands:
   report DIR            report.md + report.html for the runs under DIR (a run or a sweep):
                         the papers' claims with verdicts (experiments/claims.yaml), metrics
                         over seeds, failures; --claims FILE for another claims file
+  paper [--quick]       every paper experiment over its seeds (2 sweeps at a time), then
+                        report (make reproduce-paper); --out DIR, --lanes N, names to select
   --help, -h            this message; `ccm run --help` shows Hydra's help and the config
   --version             print the version
 
@@ -141,6 +143,7 @@ def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
         combos = _combos(overrides, multirun)
     except (HydraException, ValueError) as exc:
         return _one_line(exc)
+    planned: set[tuple[str, ...]] = set()
     with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="ccm"):
         for combo in combos:
             bad = _check_groups(combo)
@@ -150,6 +153,11 @@ def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
                 cfg = compose("config", overrides=combo)
                 settings = check_experiment(cfg)
                 check_extra_metrics(cfg)
+                # the seed changes no component: build each plan once per seed sweep
+                unseeded = tuple(o for o in combo if o.partition("=")[0].lstrip("+~") != "seed")
+                if unseeded in planned:
+                    continue
+                planned.add(unseeded)
                 plan_experiment(cfg, lambda x, c=combo: _compose_extra(c, x), settings["trials"])
             except ConfigError as exc:
                 return str(exc)
@@ -315,7 +323,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             return report(argv[1:])
         except ConfigError as exc:
             return _fail(str(exc), EXIT_CONFIG)
-    return _fail(f"unknown command {argv[0]!r}; allowed: run, list, report, --help", EXIT_CONFIG)
+    if argv[0] == "paper":
+        from ccm.paper import main as paper
+
+        return paper(argv[1:])
+    return _fail(
+        f"unknown command {argv[0]!r}; allowed: run, list, report, paper, --help", EXIT_CONFIG
+    )
 
 
 if __name__ == "__main__":

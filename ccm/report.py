@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ccm.claims import Verdict, evaluate, load_claims
+from ccm.claims import Verdict, evaluate, load_claims, t95
 from ccm.errors import ConfigError
 from ccm.records import write_atomic
 
@@ -63,8 +63,13 @@ def metrics_table(runs: Sequence[tuple[Path, dict[str, Any]]]) -> Any:
     df = pd.DataFrame(rows)
     g = df.groupby(["experiment", "condition", "metric"], sort=True)["value"]
     out = g.agg(["mean", "std", "count"]).reset_index()
-    out["ci95"] = 1.96 * out["std"].fillna(0.0) / out["count"].clip(lower=1) ** 0.5
+    # the claims' interval (Student t over seeds); one seed: NaN, shown as "–"
+    out["ci95"] = out["count"].map(t95) * out["std"] / out["count"].clip(lower=1) ** 0.5
     return out.rename(columns={"count": "n"}).drop(columns="std")
+
+
+def _ci(x: float) -> str:
+    return "–" if math.isnan(x) else f"{x:.2g}"
 
 
 def _figure(runs: Sequence[tuple[Path, dict]], experiment: str, name: str) -> Path | None:
@@ -98,15 +103,20 @@ def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
     ]  # fmt: skip
     hb = [
         "<!doctype html><html><head><meta charset='utf-8'><title>ccm report</title><style>",
-        "body{font-family:sans-serif;max-width:1100px;margin:2em auto;}"
-        "table{border-collapse:collapse;font-size:90%}td,th{border:1px solid #ccc;padding:4px}"
+        "body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em}"
+        "table{border-collapse:collapse;font-size:90%}table.claims{width:100%;table-layout:fixed}"
+        "td,th{border:1px solid #ccc;padding:4px;vertical-align:top;overflow-wrap:anywhere}"
+        "th.claim{width:18%}th.src{width:11%}th.paper{width:11%}th.ours{width:15%}"
+        "th.verdict{width:8%}"
         ".reproduced{background:#d8f5d0}.partially{background:#fff2c2}"
         ".not.reproduced,.not-reproduced{background:#f8d0d0}.not-measured{background:#eee}"
-        "img{max-width:520px;margin:4px}",
+        "img{max-width:100%;height:auto;display:block;margin:4px 0}",
         "</style></head><body>",
         f"<h1>ccm report</h1><p>{html.escape(str(root))}: {len(runs)} runs; claims: "
-        f"{html.escape(tally)}.</p><h2>Claims</h2><table><tr><th>claim</th><th>source</th>"
-        "<th>paper</th><th>ours (mean ± 95 % CI)</th><th>verdict</th><th>figures</th></tr>",
+        f"{html.escape(tally)}.</p><h2>Claims</h2><table class='claims'><tr>"
+        "<th class='claim'>claim</th><th class='src'>source</th><th class='paper'>paper</th>"
+        "<th class='ours'>ours (mean ± 95 % CI)</th><th class='verdict'>verdict</th>"
+        "<th>figures</th></tr>",
     ]
     for v in verdicts:
         c = v.claim
@@ -148,13 +158,13 @@ def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
             "| condition | metric | mean | ± CI | n |",
             "|---|---|---|---|---|",
         ]
-        md += [f"| {r.condition} | {r.metric} | {r.mean:.4g} | {r.ci95:.2g} | {r.n} |"
+        md += [f"| {r.condition} | {r.metric} | {r.mean:.4g} | {_ci(r.ci95)} | {r.n} |"
                for r in sub.itertuples()]  # fmt: skip
         md.append("")
         head = "".join(f"<th>{h}</th>" for h in ("condition", "metric", "mean", "± CI", "n"))
         hb.append(f"<details><summary>{html.escape(str(exp))}</summary><table><tr>{head}</tr>")
         hb += [f"<tr><td>{html.escape(str(r.condition))}</td><td>{html.escape(str(r.metric))}"
-               f"</td><td>{r.mean:.4g}</td><td>{r.ci95:.2g}</td><td>{r.n}</td></tr>"
+               f"</td><td>{r.mean:.4g}</td><td>{_ci(r.ci95)}</td><td>{r.n}</td></tr>"
                for r in sub.itertuples()]  # fmt: skip
         hb.append("</table></details>")
     hb.append("</body></html>")

@@ -144,10 +144,16 @@ def plan_experiment(
 ) -> list[tuple[Condition, list[tuple[Phase, Components]]]]:
     """Compose and build every condition × phase up front, so bad input fails before a run."""
     plan = []
-    phases = resolve_phases(cfg, trials)
     for cond in resolve_conditions(cfg, compose):
+        # a condition may set its own experiment.trials (e.g. a controller that keeps no state
+        # across trials and cannot see the noise repeats identical trials: fewer suffice)
+        own = cond.cfg.experiment.get("trials", 1) if cond.overrides else None
+        if own is not None and own != cfg.experiment.get("trials", 1):
+            cond_trials = check_experiment(cond.cfg)["trials"]
+        else:
+            cond_trials = trials
         built = []
-        for ph in phases:
+        for ph in resolve_phases(cond.cfg if cond.overrides else cfg, cond_trials):
             pcfg = compose([*cond.overrides, *ph.overrides]) if ph.overrides else cond.cfg
             built.append((ph, build_components(pcfg)))
         plan.append((cond, built))

@@ -53,6 +53,11 @@ def test_less_than_verdicts(pairs: list, verdict: str) -> None:
     assert v.verdict == verdict and v.n_seeds == 3
 
 
+def test_one_seed_has_no_interval() -> None:
+    v = evaluate(parse_claim(LESS, "claims[0]"), [_summary("e", 1.0, 2.0)])
+    assert v.n_seeds == 1 and v.ci95 is None and "no interval" in v.ours and "±" not in v.ours
+
+
 def test_bounds_hold_at_equality_and_missing_values_are_not_measured() -> None:
     c = parse_claim({**LESS, "compare": "at_least", "value": 1.0, "b": None}, "claims[0]")
     assert evaluate(c, [_summary("e", 1.0, 0.0)] * 3).verdict == "reproduced"

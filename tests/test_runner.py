@@ -53,6 +53,22 @@ def test_phases_share_the_controller_and_number_trials(composer, tmp_path: Path)
     assert len(list((tmp_path / "timeseries" / name).glob("trial_*.csv"))) == 3
 
 
+def test_a_condition_may_set_its_own_trial_count(composer, tmp_path: Path) -> None:
+    overrides = ["experiment=smoke", "experiment.trials=3", "experiment.figures=false",
+                 "experiment.max_time_s=0.2",
+                 "experiment.conditions.fixed_high=['controller=fixed_impedance_high',"
+                 "'experiment.trials=1']"]  # fmt: skip
+    cfg = composer(overrides)
+    summary = run_experiment(
+        cfg, lambda extra: composer([*overrides, *extra]), tmp_path, show_progress=False
+    )
+    counts = {c: sum(t["condition"] == c for t in summary["trials"]) for c in summary["conditions"]}
+    assert counts == {"fixed_low": 3, "fixed_high": 1}
+    bad = [*overrides[:-1], "experiment.conditions.fixed_high=['experiment.trials=0']"]
+    with pytest.raises(ConfigError, match="experiment.trials"):
+        plan_experiment(composer(bad), lambda extra: composer([*bad, *extra]), 3)
+
+
 @pytest.mark.parametrize(
     ("override", "key"),
     [

@@ -1,0 +1,95 @@
+"""``ccm paper``: every paper experiment as a Hydra multirun over its configured seeds, then
+``ccm report`` (issue #8; ``make reproduce-paper``).
+
+Each experiment is one ``ccm run -m experiment=<name> hydra/launcher=local`` sweep (its seeds
+and other sweep axes come from the experiment config's ``hydra.sweeper.params``), writing to
+``<out>/<name>/`` with its console output in ``<out>/<name>.log``. ``--lanes`` sweeps run at
+once, longest first: a sweep with fewer jobs than workers, or the last job of an odd sweep,
+would otherwise leave a core idle. Sweeps resume (finished runs are skipped), so running the
+same command again after an interruption only does what is missing. ``--quick`` runs seed 0
+with truncated trials (``experiment.fast=true``): a smoke test of the whole pipeline.
+
+The wall time of every sweep and of the whole pipeline goes to ``<out>/paper_timing.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from ccm.records import write_json_atomic
+
+# the paper experiments, longest first (job-seconds measured 2026-12-01 on 2 cores, for
+# scheduling only): h3 5 x 380, h1_adaptive_control 10 x ~95, mpc_contact 5 x 100, ...
+PAPER_EXPERIMENTS = (
+    "h3_long_horizon", "h1_adaptive_control", "mpc_contact", "h4_contact_learning",
+    "h4_impactless", "h2_changing_surface", "mpc_rail", "h4_collisions", "gp_contact_models",
+    "contact_head_to_head", "mpc_polishing", "mpc_goal_inference", "h1_forward_model",
+    "mpc_convexity",
+)  # fmt: skip
+
+
+def sweep_command(name: str, out: Path, quick: bool) -> list[str]:
+    """The ``ccm run -m`` command line of one experiment's sweep."""
+    cmd = [sys.executable, "-m", "ccm.cli", "run", "-m", f"experiment={name}"]
+    if quick:
+        cmd += ["seed=0", "experiment.fast=true"]
+    return [*cmd, "hydra/launcher=local", f"hydra.sweep.dir={out / name}"]
+
+
+def _run_sweep(name: str, out: Path, quick: bool, t0: float) -> tuple[str, int, float]:
+    start = time.perf_counter()
+    with open(out / f"{name}.log", "w", encoding="utf-8") as log:
+        rc = subprocess.run(
+            sweep_command(name, out, quick), stdout=log, stderr=subprocess.STDOUT, check=False
+        ).returncode
+    took = time.perf_counter() - start
+    state = "ok" if rc == 0 else f"FAILED (exit {rc}; see {out / name}.log)"
+    print(f"[{time.perf_counter() - t0:6.0f} s] {name}: {state} in {took:.0f} s", flush=True)
+    return name, rc, took
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the sweeps, then the report; exit 1 if any sweep or the report failed."""
+    p = argparse.ArgumentParser(
+        prog="ccm paper", description="Every paper experiment over its seeds, then the report."
+    )
+    p.add_argument("--out", type=Path, default=Path("outputs/paper"), help="output directory")
+    p.add_argument("--lanes", type=int, default=2, help="sweeps run at once (default 2)")
+    p.add_argument("--quick", action="store_true", help="seed 0, truncated trials")
+    p.add_argument("experiments", nargs="*", help=f"default: all {len(PAPER_EXPERIMENTS)}")
+    args = p.parse_args(argv)
+    unknown = [e for e in args.experiments if e not in PAPER_EXPERIMENTS]
+    if unknown:
+        print(
+            f"ccm paper: unknown experiment {unknown[0]!r}; allowed: "
+            f"{', '.join(PAPER_EXPERIMENTS)}",
+            file=sys.stderr,
+        )
+        return 2
+    if args.lanes < 1:
+        print(f"ccm paper: --lanes must be >= 1, got {args.lanes}", file=sys.stderr)
+        return 2
+    names = [e for e in PAPER_EXPERIMENTS if not args.experiments or e in args.experiments]
+    args.out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    print(f"ccm paper: {len(names)} sweeps, {args.lanes} at a time -> {args.out}", flush=True)
+    with ThreadPoolExecutor(max_workers=args.lanes) as pool:
+        results = list(pool.map(lambda n: _run_sweep(n, args.out, args.quick, t0), names))
+    from ccm.report import main as report
+
+    report_rc = report([str(args.out)])
+    wall = time.perf_counter() - t0
+    failed = [n for n, rc, _ in results if rc != 0]
+    write_json_atomic(
+        args.out / "paper_timing.json",
+        {"wall_s": round(wall, 1), "lanes": args.lanes, "quick": args.quick,
+         "sweeps_s": {n: round(s, 1) for n, _, s in results}, "failed": failed},
+    )  # fmt: skip
+    print(f"ccm paper: {len(names) - len(failed)}/{len(names)} sweeps ok, wall {wall / 60:.1f} min")
+    return 1 if failed or report_rc != 0 else 0

@@ -1,0 +1,40 @@
+"""``ccm paper`` (``make reproduce-paper``, issue #8 part 2): sweeps an experiment over its
+configured seeds with the local launcher, records the wall times and builds the report."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from ccm.paper import PAPER_EXPERIMENTS, main, sweep_command
+
+
+def test_paper_pipeline_on_one_experiment(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "paper"
+    assert main(["--quick", "--out", str(out), "mpc_convexity"]) == 0
+    assert json.loads(next(out.rglob("summary.json")).read_text())["status"] == "ok"
+    timing = json.loads((out / "paper_timing.json").read_text())
+    assert list(timing["sweeps_s"]) == ["mpc_convexity"] and timing["failed"] == []
+    assert (out / "report.html").is_file() and (out / "mpc_convexity.log").is_file()
+    assert "1/1 sweeps ok" in capsys.readouterr().out
+
+
+def test_paper_rejects_unknown_experiments_and_lanes(capsys: pytest.CaptureFixture) -> None:
+    assert main(["nope"]) == 2
+    assert "unknown experiment 'nope'; allowed:" in capsys.readouterr().err
+    assert main(["--lanes", "0", "mpc_convexity"]) == 2
+    assert "--lanes must be >= 1" in capsys.readouterr().err
+
+
+def test_every_paper_experiment_is_a_sweep_with_the_local_launcher(tmp_path: Path) -> None:
+    from ccm.cli import group_options
+
+    assert set(PAPER_EXPERIMENTS) <= set(group_options("experiment"))
+    full = sweep_command("h1_adaptive_control", tmp_path, quick=False)
+    assert {"-m", "experiment=h1_adaptive_control", "hydra/launcher=local"} <= set(full)
+    assert f"hydra.sweep.dir={tmp_path / 'h1_adaptive_control'}" in full
+    assert "seed=0" not in full  # the seeds come from the experiment config
+    quick = sweep_command("h1_adaptive_control", tmp_path, quick=True)
+    assert {"seed=0", "experiment.fast=true"} <= set(quick)
