@@ -72,11 +72,19 @@ def describe(group: str, option: str) -> str:
 
 
 def cmd_list() -> int:
+    import yaml
+
+    broken = 0
     for group in ("experiment", "task", "controller", "sim"):
         print(f"{group}:")
         for opt in group_options(group):
-            print(f"  {opt:<28} {describe(group, opt)}")
-    return 0
+            try:
+                text = describe(group, opt)
+            except yaml.YAMLError as exc:  # a broken option is named, the rest still listed
+                broken += 1
+                text = f"(unreadable: {_yaml_line(exc)})"
+            print(f"  {opt:<28} {text}")
+    return EXIT_CONFIG if broken else 0
 
 
 def _fail(message: str, code: int) -> int:

@@ -145,22 +145,31 @@ def plan_experiment(
     """Compose and build every condition × phase up front, so bad input fails before a run."""
     plan = []
     for cond in resolve_conditions(cfg, compose):
-        # a condition may set its own experiment.trials (e.g. a controller that keeps no state
-        # across trials and cannot see the noise repeats identical trials: fewer suffice)
-        own = cond.cfg.experiment.get("trials", 1) if cond.overrides else None
-        if own is not None and own != cfg.experiment.get("trials", 1):
-            cond_trials = check_experiment(cond.cfg)["trials"]
-        else:
-            cond_trials = trials
-        built = []
-        for ph in resolve_phases(cond.cfg if cond.overrides else cfg, cond_trials):
-            pcfg = compose([*cond.overrides, *ph.overrides]) if ph.overrides else cond.cfg
-            built.append((ph, build_components(pcfg)))
-        plan.append((cond, built))
+        try:
+            plan.append((cond, _build_condition(cfg, cond, compose, trials)))
+        except ConfigError as exc:  # name the condition whose overrides made the bad value
+            if not cond.overrides:
+                raise
+            raise ConfigError(exc.key, f"{exc.problem} (condition {cond.name})") from None
     init_from = OmegaConf.select(cfg, "init_from", default=None)
     if init_from is not None:
         load_learned_states(init_from, plan)
     return plan
+
+
+def _build_condition(
+    cfg: DictConfig, cond: Condition, compose: ComposeFn, trials: int
+) -> list[tuple[Phase, Components]]:
+    # a condition may set its own experiment.trials (e.g. a controller that keeps no state
+    # across trials and cannot see the noise repeats identical trials: fewer suffice)
+    own = cond.cfg.experiment.get("trials", 1) if cond.overrides else None
+    if own is not None and own != cfg.experiment.get("trials", 1):
+        trials = check_experiment(cond.cfg)["trials"]
+    built = []
+    for ph in resolve_phases(cond.cfg if cond.overrides else cfg, trials):
+        pcfg = compose([*cond.overrides, *ph.overrides]) if ph.overrides else cond.cfg
+        built.append((ph, build_components(pcfg)))
+    return built
 
 
 def save_learned_states(out_dir: Path, plan: Plan, trials: dict[str, int]) -> None:

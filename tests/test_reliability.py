@@ -92,6 +92,12 @@ CATALOGUE = [
     case("gain-negative", "controller.stiffness: must be > 0", SMOKE, "controller.stiffness=-1"),
     case("gain-zero", "controller.stiffness: must be > 0", SMOKE, "controller.stiffness=0"),
     case(
+        "gain-in-condition",
+        "controller.stiffness: must be > 0, got -5 (condition fixed_high)",
+        SMOKE,
+        "experiment.conditions.fixed_high=['controller=fixed_impedance','controller.stiffness=-5']",
+    ),  # fmt: skip
+    case(
         "damping-negative",
         "controller.damping: must be >= 0",
         SMOKE,
@@ -435,3 +441,14 @@ def test_yaml_syntax_error_is_one_line(tmp_path: Path, bad_yaml_configs: Path) -
     assert res.returncode != 0
     assert "Traceback" in res.stderr
     assert "yaml.parser.ParserError" in res.stderr
+
+
+def test_list_names_an_unreadable_config(
+    bad_yaml_configs: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    monkeypatch.setattr(cli, "config_dir", lambda: bad_yaml_configs)
+    assert cli.main(["list"]) == cli.EXIT_CONFIG
+    out = capsys.readouterr().out
+    (line,) = [x for x in out.splitlines() if "bad_yaml" in x]
+    assert "unreadable" in line and "bad_yaml.yaml:5:" in line and "YAML syntax error" in line
+    assert "smoke" in out  # the other options are still listed

@@ -59,3 +59,16 @@ def test_sigkill_then_rerun_equals_an_uninterrupted_sweep(tmp_path: Path) -> Non
     a = {p.parent.name: p.read_bytes() for p in _ok(tmp_path / "full")}
     b = {p.parent.name: p.read_bytes() for p in _ok(cut)}
     assert len(a) == 4 and a == b
+
+
+def test_atomic_write_leaves_no_temp_file_and_a_readable_mode(tmp_path: Path) -> None:
+    from ccm.records import write_atomic
+
+    target = tmp_path / "summary.json"
+    write_atomic(target, "{}\n")
+    write_atomic(target, '{"status": "ok"}\n')  # replaces, never appends or half-writes
+    assert target.read_text() == '{"status": "ok"}\n'
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.json"]
+    mask = os.umask(0o022)
+    os.umask(mask)
+    assert target.stat().st_mode & 0o777 == 0o666 & ~mask  # not mkstemp's 0600
