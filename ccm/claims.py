@@ -36,7 +36,7 @@ from ccm.errors import ConfigError, check_keys
 
 COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least")
 _CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment", "compare",
-               "a", "b", "value", "figures", "note")  # fmt: skip
+               "a", "b", "value", "figures", "note", "discussion")  # fmt: skip
 _REF_KEYS = ("condition", "metric", "trial")
 # two-sided 95 % Student-t quantiles for 1..30 degrees of freedom (larger: normal 1.96)
 _T95 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179,
@@ -85,6 +85,7 @@ class Claim:
     value: float | None = None
     figures: tuple[str, ...] = ()
     note: str = ""
+    discussion: str = ""  # the protocol note that discusses the outcome (experiments/*.md)
 
 
 @dataclass
@@ -141,6 +142,7 @@ def parse_claim(d: Any, key: str) -> Claim:
         statement=str(d["statement"]), paper_value=str(d["paper_value"]),
         experiment=str(d["experiment"]), compare=compare, a=a, b=b, value=value,
         figures=tuple(figures), note=str(d.get("note", "")),
+        discussion=str(d.get("discussion", "")),
     )  # fmt: skip
 
 

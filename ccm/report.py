@@ -68,6 +68,10 @@ def metrics_table(runs: Sequence[tuple[Path, dict[str, Any]]]) -> Any:
     return out.rename(columns={"count": "n"}).drop(columns="std")
 
 
+def _discussed(doc: str) -> str:
+    return f"<br>discussed in <code>{html.escape(doc)}</code>" if doc else ""
+
+
 def _ci(x: float) -> str:
     return "–" if math.isnan(x) else f"{x:.2g}"
 
@@ -123,8 +127,9 @@ def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
         figs = [(f, _figure(runs, c.experiment, f)) for f in c.figures]
         md_figs = " ".join(f"[{f}]({p.relative_to(root)})" for f, p in figs if p is not None)
         note = f" ({c.note})" if c.note else ""
+        doc = f"; discussed in `{c.discussion}`" if c.discussion else ""
         md.append(
-            f"| **{c.id}**: {c.statement}{note} | {c.paper}, {c.source}, `{c.experiment}` | "
+            f"| **{c.id}**: {c.statement}{note} | {c.paper}, {c.source}, `{c.experiment}`{doc} | "
             f"{c.paper_value} | {v.ours} | **{v.verdict}** {md_figs} |"
         )
         imgs = "".join(
@@ -135,7 +140,8 @@ def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
         hb.append(
             f"<tr><td><b>{html.escape(c.id)}</b>: {html.escape(c.statement + note)}</td>"
             f"<td>{html.escape(f'{c.paper}, {c.source}')}<br><code>{html.escape(c.experiment)}"
-            f"</code></td><td>{html.escape(c.paper_value)}</td><td>{html.escape(v.ours)}</td>"
+            f"</code>{_discussed(c.discussion)}</td><td>{html.escape(c.paper_value)}</td>"
+            f"<td>{html.escape(v.ours)}</td>"
             f"<td class='{v.verdict.replace(' ', '-')}'><b>{html.escape(v.verdict)}</b></td>"
             f"<td>{imgs}</td></tr>"
         )
