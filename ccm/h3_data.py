@@ -28,6 +28,7 @@ import numpy as np
 from omegaconf import DictConfig
 
 from ccm.errors import ConfigError, check_finite, check_int_positive
+from ccm.records import atomic_path
 from ccm.runner import build_components, run_trial, trial_seed
 
 FIELDS = ("t", "q", "dq", "position", "velocity", "force", "mode", "wall_friction")
@@ -117,10 +118,8 @@ def save_dataset(path: Path, trials: Sequence[Mapping[str, np.ndarray]], meta: M
     for i, tr in enumerate(trials):
         for name in FIELDS:
             arrays[f"trial_{i:03d}/{name}"] = np.asarray(tr[name])
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.npz")
-    np.savez_compressed(tmp, **arrays)
-    tmp.replace(path)
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
     return path
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from omegaconf import DictConfig
 
 from ccm.errors import ConfigError, check_int_positive, check_positive, config_block
-from ccm.records import write_json_atomic
+from ccm.records import save_figure, write_json_atomic
 
 INTEGRATORS = ("euler", "implicit", "exponential")
 OBJECTIVES = ("trace", "logdet")
@@ -140,6 +140,4 @@ def _figure(path: Path, curves: Mapping[str, np.ndarray]) -> None:
     fig.suptitle(
         "Convexity over (M, D) of the one-step covariance cost (seed B Fig. 4; > 0: convex)"
     )
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from ccm.metrics import derivatives, motion_error
-from ccm.records import AXES
+from ccm.records import AXES, save_figure
 
 
 def _axes_arrays(log: Mapping[str, np.ndarray], prefix: str, dim: int) -> np.ndarray:
@@ -47,9 +47,7 @@ def write_figures(
 
     def save(fig: Any, name: str) -> None:
         path = fig_dir / name
-        fig.tight_layout()
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        save_figure(fig, path)
         written.append(path)
 
     # 1. path vs target (x-y plane); one panel per condition when there are several

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ccm.gp_contact_models import case_name
+from ccm.records import save_figure
 
 
 def _panels(ref_k: float, stiffnesses: list[float]) -> list[tuple[str, list[tuple[str, str]]]]:
@@ -70,9 +71,7 @@ def write_gp_contact_figure(
         "Hinge-mean GP force models (seed B Fig. 5): data (dots), GP mean (line) ± 2σ "
         "predictive (band), true contact position (dashed)", fontsize=11,
     )  # fmt: skip
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def _draw(ax: Any, c: Mapping[str, Any], label: str, color: str) -> None:

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ccm.records import save_figure
+
 TITLES = {
     "joint_single": "joint space, trained at wall friction 0.6 (Fig. 11a)",
     "joint_multi": "joint space, trained at 0.1-0.7 (Fig. 11b)",
@@ -60,6 +62,4 @@ def write_h3_figures(fig_dir: Path, curves: Mapping[str, Mapping[str, np.ndarray
             ax.grid(alpha=0.3)
         axs[-1, 0].set_xlabel("time [s]")
         axs[0, 0].legend(fontsize=7, loc="best")
-        fig.tight_layout()
-        fig.savefig(fig_dir / fname, dpi=110)
-        plt.close(fig)
+        save_figure(fig, fig_dir / fname)
