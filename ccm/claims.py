@@ -228,5 +228,6 @@ def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
     label = what.get(claim.compare, str(claim.a))
     n = len(margins)
     spread = f"(n = {n}, one seed: no interval)" if n < 2 else f"± {q_ci:.2g} (n = {n})"
-    ours = f"{label} = {q_mean:.4g} {spread}"
+    held = sum(holds(m) for m in margins)
+    ours = f"{label} = {q_mean:.4g} {spread}; holds in {held} of {n} seeds"
     return Verdict(claim, verdict, ours, q_mean, None if n < 2 else q_ci, n)

@@ -34,20 +34,21 @@ PAPER_EXPERIMENTS = (
 )  # fmt: skip
 
 
-def sweep_command(name: str, out: Path, quick: bool) -> list[str]:
+def sweep_command(name: str, out: Path, quick: bool, launcher: str = "local") -> list[str]:
     """The ``ccm run -m`` command line of one experiment's sweep."""
     cmd = [sys.executable, "-m", "ccm.cli", "run", "-m", f"experiment={name}"]
     if quick:
         cmd += ["seed=0", "experiment.fast=true"]
-    return [*cmd, "hydra/launcher=local", f"hydra.sweep.dir={out / name}"]
+    return [*cmd, f"hydra/launcher={launcher}", f"hydra.sweep.dir={out / name}"]
 
 
-def _run_sweep(name: str, out: Path, quick: bool, t0: float) -> tuple[str, int, float]:
+def _run_sweep(
+    name: str, out: Path, quick: bool, launcher: str, t0: float
+) -> tuple[str, int, float]:
     start = time.perf_counter()
     with open(out / f"{name}.log", "w", encoding="utf-8") as log:
-        rc = subprocess.run(
-            sweep_command(name, out, quick), stdout=log, stderr=subprocess.STDOUT, check=False
-        ).returncode
+        cmd = sweep_command(name, out, quick, launcher)
+        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, check=False).returncode
     took = time.perf_counter() - start
     state = "ok" if rc == 0 else f"FAILED (exit {rc}; see {out / name}.log)"
     print(f"[{time.perf_counter() - t0:6.0f} s] {name}: {state} in {took:.0f} s", flush=True)
@@ -62,6 +63,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=Path("outputs/paper"), help="output directory")
     p.add_argument("--lanes", type=int, default=2, help="sweeps run at once (default 2)")
     p.add_argument("--quick", action="store_true", help="seed 0, truncated trials")
+    p.add_argument(
+        "--launcher", default="local",
+        help="hydra/launcher preset for every sweep (local; slurm with --lanes 14 on a cluster)",
+    )  # fmt: skip
     p.add_argument("experiments", nargs="*", help=f"default: all {len(PAPER_EXPERIMENTS)}")
     args = p.parse_args(argv)
     unknown = [e for e in args.experiments if e not in PAPER_EXPERIMENTS]
@@ -72,6 +77,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
+    from ccm.cli import group_options
+
+    if args.launcher not in group_options("hydra/launcher"):
+        allowed = ", ".join(group_options("hydra/launcher"))
+        print(
+            f"ccm paper: --launcher {args.launcher}: unknown; allowed: {allowed}", file=sys.stderr
+        )
+        return 2
     if args.lanes < 1:
         print(f"ccm paper: --lanes must be >= 1, got {args.lanes}", file=sys.stderr)
         return 2
@@ -80,7 +93,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.perf_counter()
     print(f"ccm paper: {len(names)} sweeps, {args.lanes} at a time -> {args.out}", flush=True)
     with ThreadPoolExecutor(max_workers=args.lanes) as pool:
-        results = list(pool.map(lambda n: _run_sweep(n, args.out, args.quick, t0), names))
+        results = list(
+            pool.map(lambda n: _run_sweep(n, args.out, args.quick, args.launcher, t0), names)
+        )
     from ccm.report import main as report
 
     report_rc = report([str(args.out)])
@@ -89,6 +104,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     write_json_atomic(
         args.out / "paper_timing.json",
         {"wall_s": round(wall, 1), "lanes": args.lanes, "quick": args.quick,
+         "launcher": args.launcher,
          "sweeps_s": {n: round(s, 1) for n, _, s in results}, "failed": failed},
     )  # fmt: skip
     print(f"ccm paper: {len(names) - len(failed)}/{len(names)} sweeps ok, wall {wall / 60:.1f} min")

@@ -26,6 +26,8 @@ def test_paper_rejects_unknown_experiments_and_lanes(capsys: pytest.CaptureFixtu
     assert "unknown experiment 'nope'; allowed:" in capsys.readouterr().err
     assert main(["--lanes", "0", "mpc_convexity"]) == 2
     assert "--lanes must be >= 1" in capsys.readouterr().err
+    assert main(["--launcher", "ray", "mpc_convexity"]) == 2
+    assert "allowed: local, slurm, submitit_local_test" in capsys.readouterr().err
 
 
 def test_every_paper_experiment_is_a_sweep_with_the_local_launcher(tmp_path: Path) -> None:
