@@ -374,7 +374,7 @@ def run_experiment(
                     done[cond.name] = trial
                     seed = trial_seed(int(cfg.seed), trial)
                     rec = run_trial(
-                        comp, seed, duration(comp), bar.update if bar else None,
+                        comp, seed, duration(comp), bar.advance if bar else None,
                         max_extension_s=extension,
                     )  # fmt: skip
                     sim_time += len(rec) * comp.sim.control_dt
@@ -476,4 +476,11 @@ def _progress_bar(total: int, desc: str, show: bool) -> Any:
         return None
     from tqdm import tqdm
 
-    return tqdm(total=total, desc=desc, unit="step", delay=2.0, mininterval=0.5, leave=False)
+    class Bar(tqdm):
+        def advance(self, n: int) -> None:
+            """Update by ``n`` steps; a re-timed (longer) trial grows the total, not past 100 %."""
+            if self.total is not None and self.n + n > self.total:
+                self.total = self.n + n
+            self.update(n)
+
+    return Bar(total=total, desc=desc, unit="step", delay=2.0, mininterval=0.5, leave=False)
