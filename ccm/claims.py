@@ -229,5 +229,5 @@ def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
     n = len(margins)
     spread = f"(n = {n}, one seed: no interval)" if n < 2 else f"± {q_ci:.2g} (n = {n})"
     held = sum(holds(m) for m in margins)
-    ours = f"{label} = {q_mean:.4g} {spread}; holds in {held} of {n} seeds"
+    ours = f"{label} = {q_mean:.4g} {spread}; holds in {held} of {n} runs"
     return Verdict(claim, verdict, ours, q_mean, None if n < 2 else q_ci, n)
