@@ -7,8 +7,9 @@ An experiment with ``experiment.kind: h3`` runs :func:`run_h3` instead of the tr
 1. **Data** (:mod:`ccm.h3_data`): ``table_wall`` trials with a fixed-gain controller, or the
    datasets of a previous run (``h3.data_from``). ``medium_multi``: medium stiffness, wall
    friction ``train_frictions`` (seed A: 0.1-0.7); ``medium_single``: medium, one friction
-   (0.6); ``high_multi``: high stiffness, the same frictions; ``medium_test`` /
-   ``high_test``: the test friction (0.9). Saved as ``data/<name>.npz``.
+   (0.6; medium_multi's trials at that friction when it has them); ``high_multi``: high
+   stiffness, the same frictions; ``medium_test`` / ``high_test``: the test friction (0.9).
+   Saved as ``data/<name>.npz``.
 2. **Variants** (seed A §4.4.1-4.4.3), on the data subsampled every ``subsample`` steps:
    ``joint_single`` / ``joint_multi`` / ``joint_high``: (i) joint space, X = [q, q̇] → next,
    rolled out over the whole test trial from its first state; ``task_long``: (ii)
@@ -88,6 +89,13 @@ def _datasets(h3: Mapping[str, Any], cfg: DictConfig, compose: Callable, out_dir
             save_dataset(path, out[name], {"copied_from": str(h3["data_from"])})
             continue
         controller = h3["controllers"][ctl]
+        subset = _single_friction_subset(name, out, h3)
+        if subset is not None:  # the same controller and friction: reuse, do not re-record
+            meta = {"controller": controller, "frictions": list(frictions), "seed": int(cfg.seed),
+                    "subset_of": "medium_multi"}  # fmt: skip
+            save_dataset(path, subset, meta)
+            out[name] = subset
+            continue
         trials = collect(
             compose, [f"controller={controller}"], frictions, n, int(cfg.seed),
             first_trial=first, max_time_s=h3.get("max_time_s"),
@@ -97,6 +105,20 @@ def _datasets(h3: Mapping[str, Any], cfg: DictConfig, compose: Callable, out_dir
         save_dataset(path, trials, meta)
         out[name] = trials
     return out
+
+
+def _single_friction_subset(name: str, out: Mapping[str, list], h3: Mapping) -> list | None:
+    """``medium_single`` as the first ``single_trials`` trials of ``medium_multi`` at
+    ``single_friction``, when that set holds enough of them (None otherwise: record anew).
+
+    Both sets use the same controller, so trials at the same friction differ only in their
+    sensor noise; reusing them saves recording time and makes the single-friction training
+    set a subset of the multi-friction one (seed A §4.4.1 trains on each)."""
+    if name != "medium_single" or "medium_multi" not in out:
+        return None
+    mu = float(h3["single_friction"])
+    same = [tr for tr in out["medium_multi"] if float(tr["wall_friction"]) == mu]
+    return same[: h3["single_trials"]] if len(same) >= h3["single_trials"] else None
 
 
 def _sub(tr: Trial, k: int) -> dict[str, np.ndarray]:

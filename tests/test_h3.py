@@ -78,3 +78,27 @@ def test_lag_is_positive_when_the_truth_lags_the_prediction() -> None:
     truth = np.tanh(t - 3.5)[:, None]  # the same motion, 0.5 s later
     assert _lag(truth, pred, 0.01) == pytest.approx(0.5, abs=0.011)
     assert _lag(pred, truth, 0.01) == pytest.approx(-0.5, abs=0.011)
+
+
+def test_single_friction_set_reuses_the_multi_friction_trials() -> None:
+    """medium_single = medium_multi's first trials at single_friction (same controller), and
+    is recorded anew when medium_multi has too few of them."""
+    import numpy as np
+
+    from ccm.h3 import _single_friction_subset
+
+    multi = [{"wall_friction": np.array(mu), "k": i} for i, mu in enumerate([0.1, 0.6, 0.6, 0.7])]
+    h3 = {"single_friction": 0.6, "single_trials": 2}
+    got = _single_friction_subset("medium_single", {"medium_multi": multi}, h3)
+    assert got is not None and [tr["k"] for tr in got] == [1, 2]
+    assert (
+        _single_friction_subset("medium_single", {"medium_multi": multi}, h3 | {"single_trials": 3})
+        is None
+    )
+    assert (
+        _single_friction_subset(
+            "medium_single", {"medium_multi": multi}, h3 | {"single_friction": 0.9}
+        )
+        is None
+    )
+    assert _single_friction_subset("high_multi", {"medium_multi": multi}, h3) is None

@@ -23,7 +23,6 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.svm import SVC
 
@@ -34,6 +33,7 @@ from ccm.errors import (
     check_int_positive,
     check_positive,
 )
+from ccm.learn._gpr import FastGPR
 
 
 def _as_matrix(key: str, value: Any) -> np.ndarray:
@@ -207,7 +207,7 @@ class ModalGPDynamics:
 
         # --- per-mode GPs
         target = Y - X[:, :d_out] if self.predict_delta else Y
-        self.gps_: list[list[GaussianProcessRegressor]] = []
+        self.gps_: list[list[FastGPR]] = []
         self.gp_x_mean_: list[np.ndarray] = []
         self.gp_x_std_: list[np.ndarray] = []
         self.n_fit_warnings_ = 0
@@ -220,7 +220,7 @@ class ModalGPDynamics:
             cols = [[j] for j in range(d_out)] if self.independent_outputs else [list(range(d_out))]
             gps = []
             for col in cols:
-                gp = GaussianProcessRegressor(
+                gp = FastGPR(
                     kernel=self._kernel(d_in),
                     optimizer=self._optimizer,
                     normalize_y=True,
