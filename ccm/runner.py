@@ -362,6 +362,7 @@ def run_experiment(
     wall0 = time.perf_counter()
     sim_time = 0.0
     done: dict[str, int] = {}  # trials run per condition
+    planned_left = total_steps  # planned steps of the trials not yet run
     solve_s: dict[str, list[float]] = {}  # wall time of each MPC solve (GP-MPC), per condition
     try:
         for cond, phases in plan:
@@ -369,7 +370,7 @@ def run_experiment(
             trial = 0
             for ph, comp in phases:
                 comp = Components(sim=comp.sim, task=comp.task, controller=controller)
-                for _ in range(n_trials(ph)):
+                for i in range(n_trials(ph)):
                     trial += 1
                     done[cond.name] = trial
                     seed = trial_seed(int(cfg.seed), trial)
@@ -377,6 +378,11 @@ def run_experiment(
                         comp, seed, duration(comp), bar.advance if bar else None,
                         max_extension_s=extension,
                     )  # fmt: skip
+                    planned = int(duration(comp) / comp.sim.control_dt)
+                    planned_left -= planned
+                    if bar is not None:  # a re-timed trial: expect the phase's next ones alike
+                        later = n_trials(ph) - i - 1
+                        bar.expect(bar.n + planned_left + later * (len(rec) - planned))
                     sim_time += len(rec) * comp.sim.control_dt
                     rec.write_csv(out_dir / "timeseries" / cond.name / f"trial_{trial:03d}.csv")
                     arrays = rec.arrays()
@@ -482,5 +488,10 @@ def _progress_bar(total: int, desc: str, show: bool) -> Any:
             if self.total is not None and self.n + n > self.total:
                 self.total = self.n + n
             self.update(n)
+
+        def expect(self, total: int) -> None:
+            """Set the expected total steps (after a trial: what is left, re-estimated)."""
+            self.total = max(self.n, int(total))
+            self.refresh()
 
     return Bar(total=total, desc=desc, unit="step", delay=2.0, mininterval=0.5, leave=False)

@@ -114,3 +114,21 @@ def test_controller_prepare_sets_the_pattern_the_trial_follows(composer) -> None
     expected = planned.sample(tgt["t"][mid] * 0.5).position
     assert abs(tgt["target_pos_x"][mid] - expected[0]) < 1e-12
     assert abs(tgt["target_pos_y"][mid] - expected[1]) < 1e-12
+
+
+def test_progress_bar_expect_and_advance_never_pass_100_percent() -> None:
+    """The bar's total follows the re-estimate after a trial but never drops below the steps
+    done, and a trial running past the total grows it (re-timed trials)."""
+    from ccm.runner import _progress_bar
+
+    bar = _progress_bar(100, "test", True)
+    try:
+        bar.advance(60)
+        bar.expect(150)  # a re-timed trial: the rest of the phase will be longer
+        assert (bar.n, bar.total) == (60, 150)
+        bar.expect(10)
+        assert bar.total == 60
+        bar.advance(30)
+        assert (bar.n, bar.total) == (90, 90)
+    finally:
+        bar.close()
