@@ -374,12 +374,14 @@ def run_experiment(
                     trial += 1
                     done[cond.name] = trial
                     seed = trial_seed(int(cfg.seed), trial)
+                    planned = int(duration(comp) / comp.sim.control_dt)  # before re-timing
+                    planned_left -= planned
+                    if bar is not None:
+                        bar.reserve = planned_left
                     rec = run_trial(
                         comp, seed, duration(comp), bar.advance if bar else None,
                         max_extension_s=extension,
                     )  # fmt: skip
-                    planned = int(duration(comp) / comp.sim.control_dt)
-                    planned_left -= planned
                     if bar is not None:  # a re-timed trial: expect the phase's next ones alike
                         later = n_trials(ph) - i - 1
                         bar.expect(bar.n + planned_left + later * (len(rec) - planned))
@@ -483,15 +485,18 @@ def _progress_bar(total: int, desc: str, show: bool) -> Any:
     from tqdm import tqdm
 
     class Bar(tqdm):
+        reserve = 0  # steps planned for the trials after the current one
+
         def advance(self, n: int) -> None:
-            """Update by ``n`` steps; a re-timed (longer) trial grows the total, not past 100 %."""
-            if self.total is not None and self.n + n > self.total:
-                self.total = self.n + n
+            """Update by ``n`` steps. A trial that runs past its plan (re-timed) grows the
+            total, keeping ``reserve`` steps ahead for the later trials: never past 100 %."""
+            if self.total is not None and self.n + n + self.reserve > self.total:
+                self.total = self.n + n + self.reserve
             self.update(n)
 
         def expect(self, total: int) -> None:
-            """Set the expected total steps (after a trial: what is left, re-estimated)."""
+            """Set the expected total steps (after a trial: what is left, re-estimated); shown
+            at the next update (refreshing now would show the bar before its delay)."""
             self.total = max(self.n, int(total))
-            self.refresh()
 
     return Bar(total=total, desc=desc, unit="step", delay=2.0, mininterval=0.5, leave=False)

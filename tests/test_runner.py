@@ -130,5 +130,8 @@ def test_progress_bar_expect_and_advance_never_pass_100_percent() -> None:
         assert bar.total == 60
         bar.advance(30)
         assert (bar.n, bar.total) == (90, 90)
+        bar.reserve = 50  # steps planned for later trials stay ahead of an overrunning one
+        bar.advance(20)
+        assert (bar.n, bar.total) == (110, 160)
     finally:
         bar.close()
