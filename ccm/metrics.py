@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from ccm.adaptation_metrics import measured_force_norm, prediction_skill, stiffness_adaptation
 from ccm.contact_metrics import contact_metrics
 from ccm.errors import check_positive
 from ccm.filters import first_order_alpha
@@ -89,6 +90,8 @@ def trial_metrics(
     * peak_acc_mps2 / rms_jerk_mps3: from the measured velocity through :func:`derivatives`.
     * completion_time_s: first time at or after the pattern's end when the motion error is
       within ``completion_tol_m``; ``None`` if never reached during the trial.
+    * pred_skill, pred_rmse_N, persist_rmse_N: for a controller with a forward model
+      (:func:`ccm.adaptation_metrics.prediction_skill`).
     """
     check_positive("metrics.lowpass_hz", lowpass_hz)
     axes = "xyz"[:dim]
@@ -106,6 +109,7 @@ def trial_metrics(
         float(np.nanmean(stiff)) if stiff is not None and np.any(np.isfinite(stiff)) else None
     )
     return {
+        **prediction_skill(log, dim),
         "rms_tracking_error_m": float(np.sqrt(np.mean(err**2))),
         "max_tracking_error_m": float(np.max(err)),
         "peak_force_N": float(np.max(np.linalg.norm(f_true, axis=1))),
@@ -131,15 +135,16 @@ def aggregate(trials: Sequence[Mapping[str, float | None]]) -> dict[str, float |
 def force_prediction_metrics(
     log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, float]
 ) -> dict[str, float | None]:
-    """One-step force-prediction RMSE (seed A §4.1, Fig. 4).
+    """Force-prediction RMSE and skill (seed A §4.1, Fig. 4).
 
-    Compares the controller's ``pred_force_N`` signal — its prediction of ‖F_t‖ made at
-    step t−1 (Eq. 6) — with the measured ‖F_t‖. ``unseen`` rows are those whose true
-    viscosity exceeds ``params['unseen_above_Nspm']`` (the end of the training ramp).
+    Compares the controller's ``pred_force_N`` signal — its prediction of ‖F_t‖ made from
+    S_{t−H} (Eq. 6, horizon H) — with the measured ‖F_t‖. ``unseen`` rows are those whose true
+    viscosity exceeds ``params['unseen_above_Nspm']`` (the end of the training ramp);
+    ``pred_skill_seen`` / ``pred_skill_unseen`` compare with persistence on those rows.
     """
     if "pred_force_N" not in log:
         return {"force_pred_rmse_N": None, "force_pred_rmse_unseen_N": None}
-    meas = np.linalg.norm(np.column_stack([log[f"force_{a}"] for a in "xyz"[:dim]]), axis=1)
+    meas = measured_force_norm(log, dim)
     pred = log["pred_force_N"]
     ok = np.isfinite(pred)
     out: dict[str, float | None] = {
@@ -157,6 +162,8 @@ def force_prediction_metrics(
     out["force_pred_rmse_seen_N"] = (
         float(np.sqrt(np.mean((pred[seen] - meas[seen]) ** 2))) if seen.any() else None
     )
+    out.update(prediction_skill(log, dim, seen, "_seen"))
+    out.update(prediction_skill(log, dim, unseen, "_unseen"))
     return out
 
 
@@ -214,7 +221,9 @@ def compute_extra_metrics(
     contacts in pattern order, each ``{name, position, kind}`` merged with its annotations
     ``{segment, segment_index, normal}`` (:class:`ccm.tasks.task.Task`; used by ``contacts``,
     :mod:`ccm.contact_metrics`, seed A §4.5.1) and ``controller_report``: what the controller
-    believes after the trial (:meth:`ccm.control.base.Controller.report`).
+    believes after the trial (:meth:`ccm.control.base.Controller.report`). Every controller
+    that reports K_free (the AVIC family) also gets
+    :func:`ccm.adaptation_metrics.stiffness_adaptation`.
     """
     params = dict(cfg.metrics)
     task = comp.task
@@ -224,4 +233,5 @@ def compute_extra_metrics(
     out: dict[str, float | None] = {}
     for name in names:
         out.update(EXTRA_METRICS[name](log, comp.task.dim, params))
+    out.update(stiffness_adaptation(log, params))
     return out

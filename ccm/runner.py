@@ -54,6 +54,8 @@ ANALYSES = {
     "h3": "ccm.h3:run_h3",  # seed A §4.4: offline SVM + GP baseline vs incremental models
     "mpc_convexity": "ccm.mpc_convexity:run_convexity",  # seed B §5.2, Fig. 4
     "gp_contact_models": "ccm.gp_contact_models:run_gp_contact_models",  # seed B §5.3, Fig. 5
+    # issue #16: forward-model skill against the prediction horizon (seed A §3.1, Eq. 6)
+    "forward_model_horizon": "ccm.forward_model_study:run_study",
 }
 
 

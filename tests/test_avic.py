@@ -114,3 +114,66 @@ def test_bad_parameters_name_the_key(kwargs: dict, key: str) -> None:
     with pytest.raises(ConfigError) as err:
         AVIC(**kwargs)
     assert err.value.key == key
+
+
+def test_feed_forward_opposes_the_measured_external_force() -> None:
+    """-lambda W_pred of Eq. 4a cancels the external force: with the tool on target and a
+    steady external force of -3 N along x, AVIC's command exceeds the feed-forward-free one
+    by +lambda * 3 N along x (a flipped sign would push with the disturbance)."""
+    kw = {"k_free": 300.0, "k_max": 3000.0, "r": 2.0, "eps0": 5.0}
+    ff, plain = make(**kw), make(feedforward=False, **kw)
+    o = obs(vel=(0.0, 0.0), force=(-3.0, 0.0))
+    for _ in range(120):  # past the fixed GMM's 50-point window
+        u_ff, u_plain = ff.step(o, target()), plain.step(o, target())
+    lam = ff.signals()["lambda"]
+    assert lam > 0.9, "a steady force is predicted well"
+    np.testing.assert_allclose(u_ff.force - u_plain.force, [lam * 3.0, 0.0], atol=0.05)
+
+
+def test_horizon_predictions_are_made_h_steps_ahead() -> None:
+    """With horizon 5 ms at 1 kHz the logged prediction of ||F_t|| was made from S_{t-5},
+    and persistence is ||F_{t-5}||: on a force ramp of 0.1 N per step, persistence misses
+    by 0.5 N."""
+    c = make(forward_model={"kind": "igmm", "horizon_s": 0.005}, r=2.0, eps0=5.0)
+    for k in range(200):
+        c.step(obs(vel=(0.1, 0.0), force=(-(1.0 + 0.1 * k), 0.0)), target())
+        s = c.signals()
+        if k < 5:
+            assert math.isnan(s["pred_force_N"]) and math.isnan(s["persist_force_N"])
+    assert s["persist_force_N"] == pytest.approx(1.0 + 0.1 * 194)
+    assert abs(s["persist_force_N"] - (1.0 + 0.1 * 199)) == pytest.approx(0.5)
+
+
+def test_calibration_sets_eps0_and_r_from_the_first_trial() -> None:
+    """calibrate: trial 1 runs at K_max without feed-forward while the errors are kept; then
+    eps0 = their quantile and r = shape / eps0."""
+    rng = np.random.default_rng(3)
+    cal = {"trials": 1, "quantile": 0.8, "shape": 10.0}
+    c = make(calibrate=cal, r=None, eps0=None, forward_model={"kind": "igmm"})
+    errs = []
+    for _ in range(300):
+        c.step(obs(force=(-2.0 + rng.normal(0, 0.3), 0.0)), target())
+        s = c.signals()
+        assert s["stiffness_Npm"] == 3000.0 and s["calibrating"] == 1.0
+        if np.isfinite(s["pred_error_N"]):
+            errs.append(s["pred_error_N"])
+    assert math.isnan(c.eps0)
+    c.end_trial()
+    assert c.eps0 == pytest.approx(np.quantile(errs, 0.8))
+    assert c.r == pytest.approx(10.0 / c.eps0)
+    c.reset(2, 0.001)
+    c.step(obs(force=(-2.0, 0.0)), target())
+    assert c.signals()["calibrating"] == 0.0
+    state = c.learned_state()
+    d = make(calibrate=cal, r=None, eps0=None, forward_model={"kind": "igmm"})
+    d.load_learned_state(state)
+    assert (d.eps0, d.r) == (c.eps0, c.r)
+
+
+def test_calibration_and_fixed_eps0_exclude_each_other() -> None:
+    with pytest.raises(ConfigError, match="controller.eps0"):
+        AVIC(calibrate={"trials": 1}, r=None, eps0=2.0, forward_model=FIXED)
+    with pytest.raises(ConfigError, match="controller.calibrate.quantile"):
+        AVIC(calibrate={"quantile": 1.5}, r=None, eps0=None, forward_model=FIXED)
+    with pytest.raises(ConfigError, match="controller.calibrate.colour"):
+        AVIC(calibrate={"colour": 1}, r=None, eps0=None, forward_model=FIXED)

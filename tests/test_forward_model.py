@@ -7,8 +7,10 @@ import pytest
 
 from ccm.errors import ConfigError
 from ccm.learn.forward_model import (
+    ForecastBuffer,
     FrozenGMMForwardModel,
     IncrementalForwardModel,
+    horizon_steps,
     magnitudes,
     make_forward_model,
 )
@@ -83,3 +85,40 @@ def test_make_forward_model_validates() -> None:
         make_forward_model({"kind": "igmm", "feature_scale": [1, 1, -1, 1, 1, 1]})
     with pytest.raises(ConfigError, match="fixed_gmm.fit_step"):
         make_forward_model({"kind": "fixed_gmm", "fixed_gmm": {"fit_step": 3}})
+    with pytest.raises(ConfigError, match="forward_model.horizon_s"):
+        make_forward_model({"kind": "igmm", "horizon_s": -0.01})
+
+
+def test_horizon_steps_needs_whole_control_periods() -> None:
+    assert horizon_steps(0.001, 0.001, "k") == 1
+    assert horizon_steps(0.05, 0.001, "k") == 50
+    for bad in (0.0005, 0.0105, float("nan")):
+        with pytest.raises(ConfigError, match="^k"):
+            horizon_steps(bad, 0.001, "k")
+
+
+@pytest.mark.parametrize("h", [1, 3])
+def test_forecast_buffer_pairs_states_and_predictions_h_steps_apart(h: int) -> None:
+    """At step t: past() gives S_{t-H} and the prediction made from it; after push(S_t),
+    next_prediction() is the one made from S_{t+1-H} (for H = 1: the one just pushed)."""
+    buf = ForecastBuffer(h, n_state=1, n_effect=1)
+    for t in range(12):
+        state, pred = buf.past()
+        if t < h:
+            assert state is None and pred is None
+        else:
+            assert state[0] == t - h and pred[0] == 100 + t - h
+        buf.push(np.array([float(t)]), np.array([100.0 + t]))
+        nxt = buf.next_prediction()
+        assert (nxt is None) if t + 1 < h else (nxt[0] == 100 + t + 1 - h)
+    buf.forget_predictions()
+    assert buf.past()[1] is None and buf.next_prediction() is None
+    assert buf.past()[0] is not None, "states stay: the next learning pair still exists"
+
+
+def test_saved_model_must_have_the_same_horizon() -> None:
+    a = make_forward_model({"kind": "igmm", "horizon_s": 0.01})
+    a.update(np.ones(4), np.ones(2))
+    b = make_forward_model({"kind": "igmm", "horizon_s": 0.05})
+    with pytest.raises(ValueError, match="horizon_s"):
+        b.load_state_dict(a.state_dict())

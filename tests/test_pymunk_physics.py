@@ -101,6 +101,26 @@ def test_spring_with_rest_length_and_three_springs() -> None:
     assert np.allclose(obs.force, expected, rtol=0.01, atol=1e-9), "sum of springs (1 %)"
 
 
+def test_spring_attaches_and_detaches_on_schedule() -> None:
+    """A spring with attach_s / detach_s pulls only inside [attach_s, detach_s); the truth
+    column ``springs_attached`` counts the attached springs."""
+    k = 100.0
+    spring = {"anchor": [0.0, 0.0], "stiffness": k, "attach_s": 0.2, "detach_s": 0.5}
+    sim = make_sim({"springs": [spring]}, [0.1, 0.0])
+    steps = run(sim, hold([0.1, 0.0]), 700)
+    for obs, info in steps:
+        on = 0.2 + 1e-9 < obs.t <= 0.5 + 1e-9  # the force of the step that ended at obs.t
+        f = np.linalg.norm(info.true_force)
+        if on:
+            assert f == pytest.approx(k * np.linalg.norm(obs.position), rel=0.05)
+        else:
+            assert f < 1e-6, f"no pull at t={obs.t:.3f} s"
+    attached = [info.extra["springs_attached"] for _, info in steps]
+    assert set(attached) == {0.0, 1.0}
+    with pytest.raises(ConfigError, match=r"springs\[0\]\.detach_s"):
+        make_sim({"springs": [{**spring, "detach_s": 0.1}]}, [0.1, 0.0])
+
+
 # --------------------------------------------------------------------------- 2. viscosity
 
 

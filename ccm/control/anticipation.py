@@ -390,7 +390,7 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         / ``prior_std`` (the same before the trial; None for a contact first seen in it) and,
         for a
         collision made this trial, ``approach_velocity`` (the commanded speed Eq. 9 recorded,
-        m/s) and ``impact_force`` (the F_m it measured, N)."""
+        m/s) and ``impact_force`` (the F_m it measured, N); plus :meth:`AVIC.report`."""
         out = []
         contacts = self.contact_map.contacts if self.contact_map is not None else []
         for i, c in enumerate(contacts):
@@ -409,7 +409,7 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                 "approach_velocity": c.approach.velocities[-1] if made else None,
                 "impact_force": c.approach.forces[-1] if made else None,
             })  # fmt: skip
-        return {"contacts": out}
+        return {**super().report(), "contacts": out}
 
     def end_trial(self) -> None:
         """Kalman predict step for every belief (§3.3); models of every mode (ModalAVIC)."""
@@ -434,7 +434,7 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         """
         from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
 
-        check_state_keys(state, ("classifier", "modes", "contact_map"))
+        check_state_keys(state, ("calibration", "classifier", "modes", "contact_map"))
         data, cmap = state["contact_map"], None
         if data is not None:
             try:

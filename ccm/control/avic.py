@@ -8,10 +8,20 @@ model's accuracy (Eq. 4b), where λ is a logistic function of the prediction err
     K_p   = K_free + (1 − λ)(K_max − K_free)                             (4b)
     λ     = 1 − 1 / (1 + exp(−r (ε − ε₀)))                               (4c)
 
-Timing. At control step t the sensor has just given F_t, so the newest error is
-ε_t = ‖D_t − D̂_t‖ (D̂_t was predicted at t−1), and the command u_t — applied until t+1 —
-uses λ_t and the prediction D̂_{t+1} = f(S_t). This is the paper's λ_{t−1}, W_t^pred shifted
-to the sample at which each quantity becomes available.
+Timing. The forward model's step is its horizon H = ``forward_model.horizon_s`` (H control
+periods; seed A's 2D world stepped its model with the simulation). At control step t the
+sensor has just given F_t, so the newest error is ε_t = ‖D_t − D̂_t‖ (D̂_t was predicted from
+S_{t−H}), the model learns X_t = [S_{t−H}, D_t] and predicts D̂_{t+H} = f(S_t), and the
+command u_t — applied until t+1 — uses λ_t and D̂_{t+1} (predicted from S_{t+1−H}). With
+H = 1 this is the paper's λ_{t−1}, W_t^pred shifted to the sample at which each quantity
+becomes available.
+
+ε₀ and r from data (``calibrate``). Seed A tunes r and ε₀ "for the task". With
+``calibrate: {trials, quantile, shape}`` they are set from the prediction errors instead:
+the first ``trials`` trials run at K_max without feed-forward (the model is new, as after a
+new mode in Algorithm 1) while the model learns and every ε_t is kept; then
+ε₀ = the ``quantile`` of those errors and r = ``shape`` / ε₀, so λ(ε₀/2) = 1/(1 + e^{−shape/2})
+and λ(3ε₀/2) = 1 − that (shape 10: 0.993 and 0.007). experiments/tuning/avic.md records why.
 
 Sign. Ŵ is the predicted *external* force on the end-effector, so the command subtracts it
 to cancel it (the paper writes +λ W_pred for the compensating wrench).
@@ -44,15 +54,49 @@ import numpy as np
 
 from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
 from ccm.control.impedance import FixedImpedance
-from ccm.errors import ConfigError, check_choice, check_nonneg, check_positive, constructor_kwargs
-from ccm.learn.forward_model import N_STATE, magnitudes, make_forward_model
+from ccm.errors import (
+    ConfigError,
+    check_choice,
+    check_int_positive,
+    check_keys,
+    check_nonneg,
+    check_positive,
+    constructor_kwargs,
+)
+from ccm.learn.forward_model import (
+    N_STATE,
+    ForecastBuffer,
+    horizon_steps,
+    magnitudes,
+    make_forward_model,
+)
 from ccm.types import Command, Observation, TargetSample
 
 FF_DIRECTIONS = ("against_motion", "measured", "along_motion")
 _OWN_KEYS = (
-    "k_free", "k_max", "r", "eps0", "adaptive", "feedforward", "ff_direction", "min_speed",
-    "forward_model",
+    "k_free", "k_max", "r", "eps0", "calibrate", "adaptive", "feedforward", "ff_direction",
+    "min_speed", "forward_model",
 )  # fmt: skip
+_CALIBRATE_KEYS = ("trials", "quantile", "shape")
+
+
+def check_calibrate(cfg: Mapping[str, Any] | None, key: str) -> dict[str, float] | None:
+    """Validate ``calibrate: {trials >= 1, quantile in (0, 1), shape > 0}`` (or None)."""
+    if cfg is None:
+        return None
+    if not isinstance(cfg, Mapping):
+        raise ConfigError(
+            key, f"must be a mapping {{trials, quantile, shape}} or null, got {cfg!r}"
+        )
+    check_keys(key, cfg, _CALIBRATE_KEYS)
+    q = check_positive(f"{key}.quantile", cfg.get("quantile", 0.9))
+    if q >= 1.0:
+        raise ConfigError(f"{key}.quantile", f"must be in (0, 1), got {q!r}")
+    return {
+        "trials": check_int_positive(f"{key}.trials", cfg.get("trials", 1)),
+        "quantile": q,
+        "shape": check_positive(f"{key}.shape", cfg.get("shape", 10.0)),
+    }
 
 
 class AVIC(FixedImpedance):
@@ -61,8 +105,10 @@ class AVIC(FixedImpedance):
     Args:
         k_free: K_free [N/m], the stiffness used when the model is accurate (> 0).
         k_max: K_max [N/m], the stiffness used when it is not (>= k_free).
-        r: logistic growth rate of Eq. 4c [1/N].
-        eps0: logistic midpoint ε₀ of Eq. 4c [N].
+        r: logistic growth rate of Eq. 4c [1/N]; None with ``calibrate``.
+        eps0: logistic midpoint ε₀ of Eq. 4c [N]; None with ``calibrate``.
+        calibrate: ``{trials, quantile, shape}``: set ε₀ and r from the prediction errors of
+            the first trials (module docstring), or None to use ``r`` and ``eps0``.
         adaptive: False fixes K_p = K_max and drops the feed-forward while the model still
             learns and predicts (the fixed-GMM + high-stiffness baseline of seed A §4.1).
         feedforward: add −λ Ŵ (Eq. 4a).
@@ -79,8 +125,9 @@ class AVIC(FixedImpedance):
         self,
         k_free: float = 300.0,
         k_max: float = 3000.0,
-        r: float = 2.0,
-        eps0: float = 2.0,
+        r: float | None = 2.0,
+        eps0: float | None = 2.0,
+        calibrate: Mapping[str, Any] | None = None,
         adaptive: bool = True,
         feedforward: bool = True,
         ff_direction: str = "measured",
@@ -96,8 +143,20 @@ class AVIC(FixedImpedance):
         self.k_max = check_positive(f"{key}.k_max", k_max)
         if self.k_max < self.k_free:
             raise ConfigError(f"{key}.k_max", f"must be >= k_free={k_free}, got {k_max}")
-        self.r = check_positive(f"{key}.r", r)
-        self.eps0 = check_nonneg(f"{key}.eps0", eps0)
+        self.key = key
+        self.calibrate = check_calibrate(calibrate, f"{key}.calibrate")
+        if self.calibrate is not None:
+            for name, value in (("r", r), ("eps0", eps0)):
+                if value is not None:
+                    raise ConfigError(
+                        f"{key}.{name}", f"is set by {key}.calibrate: give null, got {value!r}"
+                    )
+            self.r, self.eps0 = math.nan, math.nan  # until calibrated
+        else:
+            self.r = check_positive(f"{key}.r", r)
+            self.eps0 = check_nonneg(f"{key}.eps0", eps0)
+        self._calib_errors: list[float] = []
+        self._calib_trials = 0
         self.adaptive = bool(adaptive)
         self.feedforward = bool(feedforward)
         self.ff_direction = check_choice(f"{key}.ff_direction", ff_direction, FF_DIRECTIONS)
@@ -115,17 +174,24 @@ class AVIC(FixedImpedance):
     def reset(self, dim: int, control_dt: float) -> None:
         super().reset(dim, control_dt)
         self._lam = 0.0  # start stiff (K_max) until the model has proven itself
-        self._s_prev: np.ndarray | None = None
-        self._pred: np.ndarray | None = None
-        self._signals.update(self._avic_signals(math.nan, math.nan, math.nan))
+        h = horizon_steps(self.model.horizon_s, control_dt, f"{self.key}.forward_model.horizon_s")
+        self.forecast = ForecastBuffer(h)
+        self._signals.update(self._avic_signals(math.nan, math.nan, math.nan, math.nan))
 
-    def _avic_signals(self, pred: float, err: float, kp: float) -> dict[str, float]:
+    @property
+    def calibrating(self) -> bool:
+        """True while ``calibrate`` still collects the errors that set ε₀ and r."""
+        return self.calibrate is not None and self._calib_trials < self.calibrate["trials"]
+
+    def _avic_signals(self, pred: float, persist: float, err: float, kp: float) -> dict[str, float]:
         return {
             "lambda": self._lam,
             "pred_force_N": pred,
+            "persist_force_N": persist,
             "pred_error_N": err,
             "n_components": float(getattr(self.model, "n_components", 0)),
             "stiffness_Npm": kp,
+            "calibrating": float(self.calibrating),
         }
 
     def logistic(self, eps: float) -> float:
@@ -154,29 +220,37 @@ class AVIC(FixedImpedance):
         s = magnitudes(obs.lin_vel, obs.ang_vel, obs.force, obs.torque)
         d = s[2:N_STATE]
         self.before_step(obs, target, s)
-        pred_now = math.nan if self._pred is None else float(self._pred[0])
-        err = math.nan
-        if self._s_prev is not None:
-            if self._pred is not None and self.model.ready:
-                err = math.hypot(d[0] - self._pred[0], d[1] - self._pred[1])
-                self._lam = self.logistic(err)
-            self.learn(self._s_prev, d)
-        stiff = not self.adaptive or self.hold_k_max()
+        s_past, pred_now = self.forecast.past()  # S_{t−H} and D̂_t = f(S_{t−H})
+        err = persist = pred = math.nan
+        if s_past is not None:
+            if pred_now is not None and self.model.ready:
+                pred, persist = float(pred_now[0]), float(s_past[2])
+                err = math.hypot(d[0] - pred_now[0], d[1] - pred_now[1])
+                self._observe_error(err)
+            self.learn(s_past, d)
+        stiff = not self.adaptive or self.calibrating or self.hold_k_max()
         lam = 0.0 if stiff else self._lam
         kp = self.k_max if stiff else self.stiffness_for(lam)
         kd = self.damping_for(kp)
         u_motion, u_force = self.motion_force(obs, target, kp, kd)
-        self._pred = self.model.predict(s) if self.model.ready else None
+        self.forecast.push(s, self.model.predict(s) if self.model.ready else None)
+        pred_next = self.forecast.next_prediction()  # D̂_{t+1}, for the command until t+1
         u = u_motion + u_force
-        if self.feedforward and self._pred is not None and lam > 0.0:
-            w = self.predicted_wrench(float(self._pred[0]), obs)
+        if self.feedforward and pred_next is not None and lam > 0.0:
+            w = self.predicted_wrench(float(pred_next[0]), obs)
             if target.force_dir is not None:
                 w = w - target.force_dir * float(target.force_dir @ w)
             u = u - lam * w
-        self._s_prev = s
-        self._signals.update(self._avic_signals(pred_now, err, kp))
+        self._signals.update(self._avic_signals(pred, persist, err, kp))
         self._signals["damping_Nspm"] = kd
         return Command(force=u, torque=self.rotation_torque(obs, target))
+
+    def _observe_error(self, err: float) -> None:
+        """λ_t of Eq. 4c from ε_t, or keep ε_t for the calibration of ε₀ and r."""
+        if self.calibrating:
+            self._calib_errors.append(err)
+        else:
+            self._lam = self.logistic(err)
 
     # Hooks for Algorithm 1 (seed A §3.2), used by ccm.control.modal; plain AVIC learns every
     # step with one model and never forces K_max.
@@ -212,11 +286,61 @@ class AVIC(FixedImpedance):
 
     def end_trial(self) -> None:
         self.model.end_trial()
+        self._end_calibration_trial()
+
+    def _end_calibration_trial(self) -> None:
+        """Count a calibration trial; after the last one set ε₀ and r (module docstring)."""
+        if not self.calibrating:
+            return
+        self._calib_trials += 1
+        if self.calibrating:
+            return
+        cal = self.calibrate
+        assert cal is not None
+        errs = np.asarray(self._calib_errors, dtype=float)
+        if errs.size == 0:
+            raise ConfigError(
+                f"{self.key}.calibrate",
+                f"no prediction error was measured in the first {cal['trials']} trial(s); "
+                "give longer trials or fixed r and eps0",
+            )
+        self.eps0 = max(float(np.quantile(errs, cal["quantile"])), 1e-9)
+        self.r = cal["shape"] / self.eps0
+        self._calib_errors = []
+
+    def report(self) -> dict[str, Any]:
+        """K_free, K_max and the logistic's ε₀ and r (NaN while calibrating), for metrics."""
+        return {"k_free": self.k_free, "k_max": self.k_max, "eps0": self.eps0, "r": self.r}
+
+    def calibration_state(self) -> dict[str, Any]:
+        """JSON-safe calibration progress: trials done, ε₀ and r once set, the errors kept."""
+        done = not self.calibrating
+        return {
+            "trials": self._calib_trials,
+            "eps0": self.eps0 if done and self.calibrate is not None else None,
+            "r": self.r if done and self.calibrate is not None else None,
+            "errors": list(self._calib_errors),
+        }
+
+    def load_calibration_state(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`calibration_state` output (ValueError if it does not fit)."""
+        check_state_keys(state, ("trials", "eps0", "r", "errors"))
+        trials = int(state["trials"])
+        errors = [float(e) for e in state["errors"]]
+        if self.calibrate is None:
+            if trials or errors or state["eps0"] is not None:
+                raise ValueError("the saved controller was calibrated; this config is not")
+            return
+        eps0, r = self.eps0, self.r
+        if trials >= self.calibrate["trials"]:
+            eps0, r = check_positive("eps0", state["eps0"]), check_positive("r", state["r"])
+        self.eps0, self.r = eps0, r
+        self._calib_trials, self._calib_errors = trials, errors
 
     def learned_state(self) -> dict[str, Any]:
-        """The forward model (:meth:`IncrementalForwardModel.state_dict` or the fixed GMM's);
-        λ and the last prediction are per-trial state."""
-        return {"forward_model": self.model.state_dict()}
+        """The forward model (:meth:`IncrementalForwardModel.state_dict` or the fixed GMM's)
+        and the calibration of ε₀ and r; λ and the predictions are per-trial state."""
+        return {"forward_model": self.model.state_dict(), "calibration": self.calibration_state()}
 
     def load_learned_state(self, state: Mapping[str, Any]) -> None:
         """Restore :meth:`learned_state` output into the forward model built from the config
@@ -225,8 +349,9 @@ class AVIC(FixedImpedance):
         Raises:
             ConfigError: ``init_from``, on a malformed or mismatched state.
         """
-        check_state_keys(state, ("forward_model",))
+        check_state_keys(state, ("forward_model", "calibration"))
         try:  # the model changes only if the whole snapshot is accepted
             self.model.load_state_dict(state["forward_model"])
+            self.load_calibration_state(state["calibration"])
         except STATE_ERRORS as exc:
             raise state_error(exc) from None

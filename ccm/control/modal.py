@@ -275,7 +275,7 @@ class ModalAVIC(AVIC):
         """Make ``mode``'s model current; λ restarts from K_max (its first error sets it)."""
         self.mode = mode
         self.model = self.models[mode]
-        self._pred = None
+        self.forecast.forget_predictions()  # the previous model made them
         self._lam = 0.0
 
     def learn(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
@@ -300,14 +300,17 @@ class ModalAVIC(AVIC):
         """Every mode's model gets the end-of-trial hook (modes persist across trials)."""
         for model in self.models.values():
             model.end_trial()
+        self._end_calibration_trial()
 
     # ------------------------------------------------------------------ learned state
 
     def learned_state(self) -> dict[str, Any]:
         """The mode classifier, and per mode (``-1`` = free space) its forward model and the
-        number of samples it has been revised with (``min_mode_samples``). Batches, the
-        trigger and the current mode are per-trial state."""
+        number of samples it has been revised with (``min_mode_samples``), and the
+        calibration of ε₀ and r (:meth:`AVIC.calibration_state`). Batches, the trigger and the
+        current mode are per-trial state."""
         return {
+            "calibration": self.calibration_state(),
             "classifier": self.classifier.to_dict(),
             "modes": [
                 {"mode": m, "samples": self.samples[m], "forward_model": fm.state_dict()}
@@ -323,7 +326,7 @@ class ModalAVIC(AVIC):
         Raises:
             ConfigError: ``init_from``, on a malformed or mismatched state.
         """
-        check_state_keys(state, ("classifier", "modes"))
+        check_state_keys(state, ("calibration", "classifier", "modes"))
         try:
             settings = self.classifier.to_dict()["settings"]
             classifier = ModeClassifier.from_dict({**state["classifier"], "settings": settings})
@@ -350,6 +353,7 @@ class ModalAVIC(AVIC):
                     f"modes {sorted(models)} do not match the classifier's {expected} "
                     "(-1 = free space)"
                 )
+            self.load_calibration_state(state["calibration"])
         except STATE_ERRORS as exc:
             raise state_error(exc) from None
         self.classifier, self.models, self.samples = classifier, models, samples

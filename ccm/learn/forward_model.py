@@ -4,7 +4,12 @@ A point is X_t = [S_{t−1}, D_t] with (Eq. 2, 3)
 
     S = [‖ẋ_lin‖, ‖ẋ_rot‖, ‖F‖, ‖τ‖],   D = [‖F‖, ‖τ‖],
 
-and a model predicts D_{t+1} from S_t by GMR (Eq. 6). Magnitudes make the model independent
+and a model predicts D_{t+1} from S_t by GMR (Eq. 6). Here "t + 1" is one *model* step, the
+horizon ``horizon_s`` = H control periods: points are X_t = [S_{t−H}, D_t] and the model
+predicts D_{t+H} from S_t, while control stays at 1 kHz (:class:`ForecastBuffer` keeps the
+pairs). One control step ahead, a prediction from ‖F_t‖ cannot beat persistence
+(D̂_{t+1} = D_t) under sensor noise; experiments/tuning/forward_model_horizon.md measures the
+skill against the horizon. Magnitudes make the model independent
 of the direction of motion; the controller turns a predicted magnitude back into a vector
 (see :mod:`ccm.control.avic`). Features are divided by ``feature_scale`` (their typical size,
 in their own units) before they reach the mixture, so that one isotropic initial covariance
@@ -16,7 +21,7 @@ suits speeds in m/s and forces in N alike.
 
 Both save what they learned with ``state_dict()`` (JSON-safe) and take it back with
 ``load_state_dict()`` on a model built from the config: the settings stay the config's, the
-kind and feature scale must match.
+kind, feature scale and horizon must match.
 """
 
 from __future__ import annotations
@@ -35,6 +40,9 @@ IN_IDX = np.arange(N_STATE)
 OUT_IDX = np.arange(N_STATE, N_STATE + N_EFFECT)
 #: typical magnitudes of [‖v‖ m/s, ‖ω‖ rad/s, ‖F‖ N, ‖τ‖ N m, ‖F‖ N, ‖τ‖ N m] (chosen)
 DEFAULT_SCALE = (0.1, 1.0, 10.0, 1.0, 10.0, 1.0)
+#: prediction horizon [s] when a config gives none: one 1 kHz control step (seed A's "next
+#: time step"; the configs set the horizon of experiments/tuning/forward_model_horizon.md)
+DEFAULT_HORIZON_S = 0.001
 
 
 def magnitudes(
@@ -51,6 +59,69 @@ def magnitudes(
     )
 
 
+def horizon_steps(horizon_s: float, control_dt: float, key: str) -> int:
+    """The prediction horizon in control steps: ``horizon_s`` must be a whole number (>= 1)
+    of control periods, e.g. 0.01 s at 1 kHz -> 10."""
+    h = check_positive(key, horizon_s)
+    n = round(h / control_dt)
+    if n < 1 or abs(n * control_dt - h) > 1e-9 * max(1.0, h):
+        raise ConfigError(
+            key, f"must be a whole number of control periods ({control_dt:g} s), got {horizon_s!r}"
+        )
+    return int(n)
+
+
+class ForecastBuffer:
+    """The last H states and the predictions made from them, for an H-step forward model.
+
+    A forward model with horizon H control steps learns X = [S_{t−H}, D_t] and predicts
+    D̂_{t+H} = f(S_t) (seed A Eq. 5–6 with the model's step = H control periods). At control
+    step t the buffer gives back S_{t−H} and D̂_t (made H steps ago) for the error and the
+    learning point, and D̂_{t+1} (made H − 1 steps ago, or now if H = 1) for the feed-forward
+    of the command that acts until t + 1. Fixed-size arrays: no allocation per step.
+
+    Args:
+        horizon: H >= 1 control steps.
+        n_state, n_effect: lengths of S and D.
+    """
+
+    def __init__(self, horizon: int, n_state: int = N_STATE, n_effect: int = N_EFFECT) -> None:
+        self.horizon = check_int_positive("forward_model.horizon", horizon)
+        self._states = np.zeros((self.horizon, n_state))
+        self._preds = np.zeros((self.horizon, n_effect))
+        self._has_state = np.zeros(self.horizon, dtype=bool)
+        self._has_pred = np.zeros(self.horizon, dtype=bool)
+        self._k = 0  # control steps pushed since the reset
+
+    def past(self) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(S_{t−H}, D̂_t) for the step about to be pushed; None where not available (the
+        first H steps of a trial, or no prediction was made then). Views: copy to keep."""
+        i = self._k % self.horizon
+        state = self._states[i] if self._has_state[i] else None
+        return state, (self._preds[i] if self._has_pred[i] else None)
+
+    def push(self, state: np.ndarray, prediction: np.ndarray | None) -> None:
+        """Store S_t and D̂_{t+H} = f(S_t) (None: the model could not predict yet)."""
+        i = self._k % self.horizon
+        self._states[i] = state
+        self._has_state[i] = True
+        if prediction is None:
+            self._has_pred[i] = False
+        else:
+            self._preds[i] = prediction
+            self._has_pred[i] = True
+        self._k += 1
+
+    def next_prediction(self) -> np.ndarray | None:
+        """D̂_{t+1} after :meth:`push` of step t: the prediction for the next control step."""
+        i = self._k % self.horizon
+        return self._preds[i] if self._has_pred[i] else None
+
+    def forget_predictions(self) -> None:
+        """Drop every stored prediction (the model that made them was replaced)."""
+        self._has_pred[:] = False
+
+
 def _check_scale(scale: Sequence[float], key: str) -> np.ndarray:
     arr = np.asarray(list(scale), dtype=float)
     if arr.shape != (N_STATE + N_EFFECT,):
@@ -60,9 +131,9 @@ def _check_scale(scale: Sequence[float], key: str) -> np.ndarray:
     return arr
 
 
-def _check_state(data: Mapping[str, Any], kind: str, scale: np.ndarray) -> None:
-    """A saved forward model must be of this config's ``kind`` and feature scale (its numbers
-    are in the scaled units)."""
+def _check_state(data: Mapping[str, Any], kind: str, scale: np.ndarray, horizon_s: float) -> None:
+    """A saved forward model must be of this config's ``kind``, feature scale (its numbers
+    are in the scaled units) and horizon (it maps S_t to D_{t+H})."""
     if not isinstance(data, Mapping):
         raise ValueError(f"forward model state must be a mapping, got {type(data).__name__}")
     if data.get("kind") != kind:
@@ -75,6 +146,11 @@ def _check_state(data: Mapping[str, Any], kind: str, scale: np.ndarray) -> None:
             f"the saved forward model has feature_scale {data.get('feature_scale')!r}, "
             f"this config's is {scale.tolist()!r}"
         )
+    if data.get("horizon_s") != horizon_s:
+        raise ValueError(
+            f"the saved forward model has horizon_s {data.get('horizon_s')!r}, "
+            f"this config's is {horizon_s!r}"
+        )
 
 
 class IncrementalForwardModel:
@@ -83,6 +159,8 @@ class IncrementalForwardModel:
     Args:
         feature_scale: divisor per feature of X = [S, D] (6 values).
         igmm: keyword arguments of :class:`ccm.learn.igmm.IGMM`.
+        horizon_s: H, the time between S and the D it predicts [s]; whoever feeds the model
+            pairs H apart (:class:`ForecastBuffer`) reads it.
         key: config prefix for error messages.
     """
 
@@ -90,11 +168,13 @@ class IncrementalForwardModel:
         self,
         feature_scale: Sequence[float] = DEFAULT_SCALE,
         igmm: dict[str, Any] | None = None,
+        horizon_s: float = DEFAULT_HORIZON_S,
         key: str = "controller.forward_model",
     ) -> None:
         from ccm.learn.igmm import IGMM
 
         self.scale = _check_scale(feature_scale, f"{key}.feature_scale")
+        self.horizon_s = check_positive(f"{key}.horizon_s", horizon_s)
         self.model = IGMM(N_STATE + N_EFFECT, **(igmm or {}), key=f"{key}.igmm")
         self._gmr = self.model.conditional(IN_IDX, OUT_IDX)  # refreshed by the model itself
         self._x = np.empty(N_STATE + N_EFFECT)
@@ -127,7 +207,12 @@ class IncrementalForwardModel:
     def state_dict(self) -> dict[str, Any]:
         """JSON-safe learned state: kind, feature scale and the IGMM snapshot
         (:meth:`ccm.learn.igmm.IGMM.to_dict`)."""
-        return {"kind": "igmm", "feature_scale": self.scale.tolist(), "igmm": self.model.to_dict()}
+        return {
+            "kind": "igmm",
+            "feature_scale": self.scale.tolist(),
+            "horizon_s": self.horizon_s,
+            "igmm": self.model.to_dict(),
+        }
 
     def load_state_dict(self, data: Mapping[str, Any]) -> None:
         """Take the components of a :meth:`state_dict`; the IGMM settings stay this model's.
@@ -138,7 +223,7 @@ class IncrementalForwardModel:
         """
         from ccm.learn.igmm import IGMM
 
-        _check_state(data, "igmm", self.scale)
+        _check_state(data, "igmm", self.scale, self.horizon_s)
         snap = data.get("igmm")
         if not isinstance(snap, Mapping):
             raise ValueError("forward model state: igmm must be a mapping")
@@ -162,6 +247,7 @@ class FrozenGMMForwardModel:
         feature_scale: as for :class:`IncrementalForwardModel`.
         random_state: seed of the k-means initialisation (reproducible fits).
         reg_covar: covariance regulariser passed to scikit-learn.
+        horizon_s: as for :class:`IncrementalForwardModel`.
     """
 
     def __init__(
@@ -171,11 +257,13 @@ class FrozenGMMForwardModel:
         feature_scale: Sequence[float] = DEFAULT_SCALE,
         random_state: int = 0,
         reg_covar: float = 1e-6,
+        horizon_s: float = DEFAULT_HORIZON_S,
         key: str = "controller.forward_model",
     ) -> None:
         self.fit_steps = check_int_positive(f"{key}.fit_steps", fit_steps)
         self.n_components = check_int_positive(f"{key}.n_components", n_components)
         self.scale = _check_scale(feature_scale, f"{key}.feature_scale")
+        self.horizon_s = check_positive(f"{key}.horizon_s", horizon_s)
         self.random_state = int(random_state)
         self.reg_covar = check_positive(f"{key}.reg_covar", reg_covar)
         self._buf = np.empty((self.fit_steps, N_STATE + N_EFFECT))
@@ -232,6 +320,7 @@ class FrozenGMMForwardModel:
         return {
             "kind": "fixed_gmm",
             "feature_scale": self.scale.tolist(),
+            "horizon_s": self.horizon_s,
             "points": self._buf[: self._n].tolist() if self._params is None else [],
             "fitted": fitted,
         }
@@ -245,7 +334,7 @@ class FrozenGMMForwardModel:
         """
         from ccm.learn.gmr import GMRConditional
 
-        _check_state(data, "fixed_gmm", self.scale)
+        _check_state(data, "fixed_gmm", self.scale, self.horizon_s)
         fitted = data.get("fitted")
         if fitted is not None:
             if not isinstance(fitted, Mapping):
@@ -273,7 +362,8 @@ FORWARD_MODELS = {"igmm": IncrementalForwardModel, "fixed_gmm": FrozenGMMForward
 
 
 def make_forward_model(cfg: dict[str, Any], key: str = "controller.forward_model") -> Any:
-    """Build a forward model from ``{kind, feature_scale, igmm: {...}, fixed_gmm: {...}}``.
+    """Build a forward model from ``{kind, feature_scale, horizon_s, igmm: {...},
+    fixed_gmm: {...}}``.
 
     ``kind`` picks the model; only its own sub-mapping is used, so a config can carry the
     settings of both kinds and a condition can switch with ``forward_model.kind=…``.
@@ -281,14 +371,18 @@ def make_forward_model(cfg: dict[str, Any], key: str = "controller.forward_model
     from ccm.errors import check_choice
 
     cfg = dict(cfg or {})
-    check_keys(key, cfg, ("kind", "feature_scale", *FORWARD_MODELS))
+    check_keys(key, cfg, ("kind", "feature_scale", "horizon_s", *FORWARD_MODELS))
     kind = check_choice(f"{key}.kind", cfg.get("kind", "igmm"), FORWARD_MODELS)
-    scale = cfg.get("feature_scale", DEFAULT_SCALE)
+    shared = {
+        "feature_scale": cfg.get("feature_scale", DEFAULT_SCALE),
+        "horizon_s": cfg.get("horizon_s", DEFAULT_HORIZON_S),
+    }
     sub = dict(cfg.get(kind) or {})
     if kind == "igmm":
-        return IncrementalForwardModel(feature_scale=scale, igmm=sub, key=key)
+        return IncrementalForwardModel(igmm=sub, **shared, key=key)
     from ccm.errors import constructor_kwargs
 
     kwargs = constructor_kwargs(FrozenGMMForwardModel, sub, f"{key}.{kind}")
-    kwargs.pop("feature_scale", None)
-    return FrozenGMMForwardModel(**kwargs, feature_scale=scale, key=key)
+    for k in shared:
+        kwargs.pop(k, None)
+    return FrozenGMMForwardModel(**kwargs, **shared, key=key)

@@ -160,6 +160,15 @@ class Pymunk2D(Simulator):
         self._springs = [
             (s.anchor[0], s.anchor[1], s.stiffness, s.rest_length) for s in scene.springs
         ]
+        # physics-step window [attach, detach) of each spring, for scenes that schedule them
+        self._spring_steps = [
+            (
+                round(s.attach_s / self.dt),
+                math.inf if s.detach_s is None else round(s.detach_s / self.dt),
+            )
+            for s in scene.springs
+        ]
+        self._scheduled_springs = any(s.scheduled for s in scene.springs)
         self._comp_fy = scene.ee.mass * scene.gravity if self.config.gravity_compensation else 0.0
         self._has_viscous = bool(scene.viscous)
         self._rotates = scene.ee.rotate
@@ -353,10 +362,18 @@ class Pymunk2D(Simulator):
         space.add(body, shape)
         return space, body
 
+    def _attached(self) -> list[bool]:
+        """Whether each spring is attached at the current physics step."""
+        n = self._steps
+        return [a <= n < d for a, d in self._spring_steps]
+
     def _spring_force(self, x: float, y: float) -> tuple[float, float]:
-        """Sum of ``-k (|d| - L0) d/|d|`` over springs; zero where ``|d| = 0``."""
+        """Sum of ``-k (|d| - L0) d/|d|`` over the attached springs; zero where ``|d| = 0``."""
         fx = fy = 0.0
-        for axp, ayp, k, l0 in self._springs:
+        springs = self._springs
+        if self._scheduled_springs:
+            springs = [s for s, on in zip(springs, self._attached(), strict=True) if on]
+        for axp, ayp, k, l0 in springs:
             dx, dy = x - axp, y - ayp
             if l0 == 0.0:
                 fx -= k * dx
@@ -475,6 +492,8 @@ class Pymunk2D(Simulator):
             "surface_friction": mu if n_contacts > 0 else -1.0,
             "contact": 1.0 if n_contacts > 0 else 0.0,
         }
+        if self._scheduled_springs:  # truth of the environment changes (metrics only)
+            extra["springs_attached"] = float(sum(self._attached()))
         if self._hri is not None:
             extra.update(self._hri.extra())
         info = StepInfo(

@@ -240,27 +240,45 @@ class BoxSpec:
 class SpringSpec:
     """A linear spring from a fixed anchor to the end-effector centre (seed A Fig. 1c).
 
-    The force on the end-effector is ``F = -k (|d| - L0) d / |d|`` with ``d = p_ee - anchor``.
+    The force on the end-effector is ``F = -k (|d| - L0) d / |d|`` with ``d = p_ee - anchor``,
+    while the spring is attached: from ``attach_s`` (simulated time since the reset) until
+    ``detach_s``. A spring that attaches while stretched makes the external force jump, an
+    environment change within one contact mode.
 
     Attributes:
-        anchor: [m]; stiffness: k [N/m] > 0; rest_length: L0 [m] >= 0 (default 0).
+        anchor: [m]; stiffness: k [N/m] > 0; rest_length: L0 [m] >= 0 (default 0);
+        attach_s: [s] >= 0 (default 0, attached from the start); detach_s: [s] > attach_s,
+        or None (default: never detaches).
     """
 
     anchor: Vec2
     stiffness: float
     rest_length: float = 0.0
+    attach_s: float = 0.0
+    detach_s: float | None = None
+
+    @property
+    def scheduled(self) -> bool:
+        """True if the spring attaches after the start or detaches at some time."""
+        return self.attach_s > 0.0 or self.detach_s is not None
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> SpringSpec:
         d = as_plain(cfg, key)
-        check_keys(key, d, ("anchor", "stiffness", "rest_length"))
+        check_keys(key, d, ("anchor", "stiffness", "rest_length", "attach_s", "detach_s"))
         for req in ("anchor", "stiffness"):
             if req not in d:
                 raise ConfigError(f"{key}.{req}", "is required")
+        attach = check_nonneg(f"{key}.attach_s", d.get("attach_s", 0.0))
+        detach = d.get("detach_s")
+        if detach is not None and check_positive(f"{key}.detach_s", detach) <= attach:
+            raise ConfigError(f"{key}.detach_s", f"must be > attach_s={attach!r}, got {detach!r}")
         return cls(
             anchor=_vec2(f"{key}.anchor", d["anchor"]),
             stiffness=check_positive(f"{key}.stiffness", d["stiffness"]),
             rest_length=check_nonneg(f"{key}.rest_length", d.get("rest_length", 0.0)),
+            attach_s=float(attach),
+            detach_s=None if detach is None else float(detach),
         )
 
 
