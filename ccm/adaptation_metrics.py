@@ -105,11 +105,9 @@ def stiffness_adaptation(
     for i in changes:
         window |= (t >= t[i]) & (t < t[i] + float(params.get("change_window_s", 0.2)))
     rest = ~window
-    out["stiffness_rise_at_change"] = (
-        float(np.mean(stiff[window]) / np.mean(stiff[rest]))
-        if window.any() and rest.any()
-        else None
-    )
+    at, elsewhere = (float(np.mean(stiff[m])) if m.any() else None for m in (window, rest))
+    out["stiffness_at_change_Npm"], out["stiffness_elsewhere_Npm"] = at, elsewhere
+    out["stiffness_rise_at_change"] = at / elsewhere if at is not None and elsewhere else None
     visc, limit = log.get("truth_viscosity_Nspm"), params.get("unseen_above_Nspm")
     if visc is not None and limit is not None:
         unseen = visc > float(limit)

@@ -20,6 +20,13 @@ lower end of the 95 % confidence interval of the mean margin (t-interval; for on
 margin itself) is > 0 (≥ 0 for the bounds ``at_most`` / ``at_least``, which hold at
 equality), **partially** when only the mean margin is, **not reproduced** otherwise. A claim
 whose values are missing is **not measured**.
+
+A claim about a mechanism may name ``requires``: references with bounds
+(``{condition, metric, at_least, at_most}``) that show the mechanism acting in a run, e.g.
+AVIC's stiffness moving at all (``stiffness_active_frac``). ``task`` restricts a claim to the
+runs of one task of a sweep over tasks. A run that misses a requirement
+does not count as holding; if no run meets the requirements the claim is **not reproduced**,
+and if only some do, a *reproduced* verdict becomes **partially**.
 """
 
 from __future__ import annotations
@@ -36,8 +43,9 @@ from ccm.errors import ConfigError, check_keys
 
 COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least")
 _CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment", "compare",
-               "a", "b", "value", "figures", "note", "discussion")  # fmt: skip
+               "a", "b", "value", "figures", "note", "discussion", "requires", "task")  # fmt: skip
 _REF_KEYS = ("condition", "metric", "trial")
+_REQ_KEYS = (*_REF_KEYS, "at_least", "at_most")
 # two-sided 95 % Student-t quantiles for 1..30 degrees of freedom (larger: normal 1.96)
 _T95 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179,
         2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064,
@@ -70,6 +78,24 @@ class Ref:
 
 
 @dataclass(frozen=True)
+class Requirement:
+    """A reference that must lie in [at_least, at_most] for a run to count (module doc)."""
+
+    ref: Ref
+    at_least: float = -math.inf
+    at_most: float = math.inf
+
+    def met(self, summary: Mapping[str, Any]) -> bool:
+        v = self.ref.value(summary)
+        return v is not None and self.at_least <= v <= self.at_most
+
+    def __str__(self) -> str:
+        lo = "" if math.isinf(self.at_least) else f"{self.at_least:g} <= "
+        hi = "" if math.isinf(self.at_most) else f" <= {self.at_most:g}"
+        return f"{lo}{self.ref}{hi}"
+
+
+@dataclass(frozen=True)
 class Claim:
     """A paper's claim and how ccm judges it (module docstring)."""
 
@@ -86,6 +112,8 @@ class Claim:
     figures: tuple[str, ...] = ()
     note: str = ""
     discussion: str = ""  # the protocol note that discusses the outcome (experiments/*.md)
+    requires: tuple[Requirement, ...] = ()
+    task: str | None = None  # judge only the runs of this task (summary.json ``task``)
 
 
 @dataclass
@@ -113,6 +141,23 @@ def _ref(key: str, d: Any) -> Ref:
     return Ref(d["condition"], d["metric"], trial)
 
 
+def _requirement(key: str, d: Any) -> Requirement:
+    if not isinstance(d, Mapping):
+        raise ConfigError(key, "must be a mapping {condition, metric, at_least and/or at_most}")
+    check_keys(key, d, _REQ_KEYS)
+    bounds = {}
+    for k in ("at_least", "at_most"):
+        v = d.get(k)
+        if v is not None:
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise ConfigError(f"{key}.{k}", f"must be a finite number, got {v!r}")
+            bounds[k] = float(v)
+    if not bounds:
+        raise ConfigError(key, "needs at_least and/or at_most")
+    ref = _ref(key, {k: v for k, v in d.items() if k in _REF_KEYS})
+    return Requirement(ref, **bounds)
+
+
 def parse_claim(d: Any, key: str) -> Claim:
     """Validate one claim mapping; every error names its key."""
     if not isinstance(d, Mapping):
@@ -137,12 +182,17 @@ def parse_claim(d: Any, key: str) -> Claim:
     figures = d.get("figures") or []
     if not isinstance(figures, list) or not all(isinstance(f, str) for f in figures):
         raise ConfigError(f"{key}.figures", "must be a list of figure file names")
+    reqs = d.get("requires") or []
+    if not isinstance(reqs, list):
+        raise ConfigError(f"{key}.requires", "must be a list of {condition, metric, bounds}")
+    requires = tuple(_requirement(f"{key}.requires[{i}]", r) for i, r in enumerate(reqs))
     return Claim(
         id=str(d["id"]), paper=d["paper"], source=str(d["source"]),
         statement=str(d["statement"]), paper_value=str(d["paper_value"]),
         experiment=str(d["experiment"]), compare=compare, a=a, b=b, value=value,
         figures=tuple(figures), note=str(d.get("note", "")),
-        discussion=str(d.get("discussion", "")),
+        discussion=str(d.get("discussion", "")), requires=requires,
+        task=None if d.get("task") is None else str(d["task"]),
     )  # fmt: skip
 
 
@@ -205,12 +255,17 @@ def _mean_ci(x: Sequence[float]) -> tuple[float, float]:
 def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
     """Judge ``claim`` on the ``ok`` summaries of its experiment (one per seed)."""
     runs = [
-        s for s in summaries if s.get("status") == "ok" and s.get("experiment") == claim.experiment
+        s
+        for s in summaries
+        if s.get("status") == "ok"
+        and s.get("experiment") == claim.experiment
+        and (claim.task is None or s.get("task") == claim.task)
     ]
-    pairs = [p for p in (_margin(claim, s) for s in runs) if p is not None]
-    if not pairs:
+    measured = [(s, p) for s, p in ((s, _margin(claim, s)) for s in runs) if p is not None]
+    if not measured:
         return Verdict(claim, "not measured", "–", None, None, 0)
-    qty, margins = zip(*pairs, strict=True)
+    qty, margins = zip(*(p for _, p in measured), strict=True)
+    acting = [all(r.met(s) for r in claim.requires) for s, _ in measured]
     m_mean, m_ci = _mean_ci(margins)
     q_mean, q_ci = _mean_ci(qty)
     # a bound (at_most / at_least) holds at equality; a comparison of two values must be strict
@@ -224,10 +279,17 @@ def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
         else "partially" if holds(m_mean)
         else "not reproduced"
     )  # fmt: skip
+    if not any(acting):
+        verdict = "not reproduced"
+    elif not all(acting) and verdict == "reproduced":
+        verdict = "partially"
     what = {"less_than": f"{claim.a} − {claim.b}", "ratio_at_most": f"{claim.a} / {claim.b}"}
     label = what.get(claim.compare, str(claim.a))
     n = len(margins)
     spread = f"(n = {n}, one seed: no interval)" if n < 2 else f"± {q_ci:.2g} (n = {n})"
-    held = sum(holds(m) for m in margins)
+    held = sum(holds(m) and ok for m, ok in zip(margins, acting, strict=True))
     ours = f"{label} = {q_mean:.4g} {spread}; holds in {held} of {n} runs"
+    if claim.requires:
+        need = ", ".join(str(r) for r in claim.requires)
+        ours += f"; requires {need}: met in {sum(acting)} of {n}"
     return Verdict(claim, verdict, ours, q_mean, None if n < 2 else q_ci, n)

@@ -156,18 +156,19 @@ def evaluate(data: Mapping[str, Any], s: Mapping[str, Any], dt: float) -> list[d
     for task, d in data.items():
         for i, hs in enumerate(s["horizons_s"]):
             h = horizon_steps(hs, dt, f"fm_study.horizons_s[{i}]")
+            fm_h = {**fm, "horizon_s": float(hs)}  # the models' label of their horizon
             xtr, ytr = _pairs(d["train"][0], h)
             xte, yte = _pairs(d["test"][0], h)
             limit = d["unseen_above_Nspm"]
             visc = d["test"][1][h:]
             unseen = visc > float(limit) if limit is not None else np.zeros(len(yte), bool)
             y, persist = yte[:, 0], xte[:, 2]
-            preds = {"persistence": persist, "igmm": _igmm(xtr, ytr, xte, yte, fm)}
+            preds = {"persistence": persist, "igmm": _igmm(xtr, ytr, xte, yte, fm_h)}
             for k in s["fixed_components"]:
-                preds[f"fixed_gmm_k{k}"] = _predict(_fixed(xtr, ytr, k, fm), xte)
+                preds[f"fixed_gmm_k{k}"] = _predict(_fixed(xtr, ytr, k, fm_h), xte)
             extra: dict[str, Any] = {}
             if s["fixed_components"]:
-                k = _select_k(xtr, ytr, s["fixed_components"], s["holdout_frac"], fm)
+                k = _select_k(xtr, ytr, s["fixed_components"], s["holdout_frac"], fm_h)
                 preds["fixed_gmm_selected"] = preds[f"fixed_gmm_k{k}"]
                 extra["fixed_gmm_selected"] = {"selected_k": float(k)}
             for name, pred in preds.items():

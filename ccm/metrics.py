@@ -10,7 +10,7 @@ import numpy as np
 from ccm.adaptation_metrics import measured_force_norm, prediction_skill, stiffness_adaptation
 from ccm.contact_metrics import contact_metrics
 from ccm.errors import check_positive
-from ccm.filters import first_order_alpha
+from ccm.filters import first_order_alpha, lowpass_sequence
 from ccm.mode_metrics import mode_metrics
 from ccm.mpc_metrics import gp_mpc_metrics
 
@@ -32,14 +32,7 @@ def lowpass(x: np.ndarray, dt: float, cutoff_hz: float) -> np.ndarray:
     α = dt / (dt + 1/(2π f_c)). One documented filter, used for every condition, stands in for
     the velocity filtering a robot applies to encoder-derived velocities.
     """
-    alpha = first_order_alpha(dt, cutoff_hz)
-    y = np.empty_like(x, dtype=float)
-    if len(x) == 0:
-        return y
-    y[0] = x[0]
-    for k in range(1, len(x)):
-        y[k] = y[k - 1] + alpha * (x[k] - y[k - 1])
-    return y
+    return lowpass_sequence(x, first_order_alpha(dt, cutoff_hz))
 
 
 def derivatives(vel: np.ndarray, dt: float, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -132,6 +125,34 @@ def aggregate(trials: Sequence[Mapping[str, float | None]]) -> dict[str, float |
     return out
 
 
+#: trials at the end of a condition over which learning_curve judges convergence
+CONVERGENCE_TRIALS = 10
+
+
+def learning_curve(trials: Sequence[Mapping[str, float | None]]) -> dict[str, float | None]:
+    """Across-trial facts of one condition's RMS tracking error (seed A Fig. 7b).
+
+    ``rms_error_spread_last10``: (max − min) / mean of the last ten trials' errors, 0 for a
+    settled learner (None with fewer than ten trials); ``rms_error_last_over_first``: the
+    last trial's error over the first's.
+    """
+    e = [float(t["rms_tracking_error_m"]) for t in trials
+         if isinstance(t.get("rms_tracking_error_m"), int | float)]  # fmt: skip
+    tail = np.asarray(e[-CONVERGENCE_TRIALS:])
+    return {
+        "rms_error_spread_last10": float(np.ptp(tail) / np.mean(tail))
+        if len(e) >= CONVERGENCE_TRIALS and np.mean(tail) > 0
+        else None,
+        "rms_error_last_over_first": e[-1] / e[0] if len(e) > 1 and e[0] > 0 else None,
+    }
+
+
+def condition_summary(trials: Sequence[Mapping[str, float | None]]) -> dict[str, float | None]:
+    """A condition's entry in summary.json: the trial means (:func:`aggregate`) and the
+    :func:`learning_curve` of its trials (in trial order)."""
+    return {**aggregate(trials), **learning_curve(trials)}
+
+
 def force_prediction_metrics(
     log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, float]
 ) -> dict[str, float | None]:
@@ -140,7 +161,8 @@ def force_prediction_metrics(
     Compares the controller's ``pred_force_N`` signal — its prediction of ‖F_t‖ made from
     S_{t−H} (Eq. 6, horizon H) — with the measured ‖F_t‖. ``unseen`` rows are those whose true
     viscosity exceeds ``params['unseen_above_Nspm']`` (the end of the training ramp);
-    ``pred_skill_seen`` / ``pred_skill_unseen`` compare with persistence on those rows.
+    ``pred_skill_seen`` / ``pred_skill_unseen`` compare with persistence on those rows, and
+    ``rms_tracking_error_seen_m`` / ``_unseen_m`` give the tracking error there.
     """
     if "pred_force_N" not in log:
         return {"force_pred_rmse_N": None, "force_pred_rmse_unseen_N": None}
@@ -154,7 +176,8 @@ def force_prediction_metrics(
     }
     visc = log.get("truth_viscosity_Nspm")
     limit = params.get("unseen_above_Nspm")
-    unseen = ok & (visc > float(limit)) if visc is not None and limit is not None else ok & False
+    beyond = visc > float(limit) if visc is not None and limit is not None else ok & False
+    unseen = ok & beyond
     out["force_pred_rmse_unseen_N"] = (
         float(np.sqrt(np.mean((pred[unseen] - meas[unseen]) ** 2))) if unseen.any() else None
     )
@@ -164,6 +187,13 @@ def force_prediction_metrics(
     )
     out.update(prediction_skill(log, dim, seen, "_seen"))
     out.update(prediction_skill(log, dim, unseen, "_unseen"))
+    axes = "xyz"[:dim]
+    err = motion_error(*(np.column_stack([log[f"{p}_{a}"] for a in axes])
+                         for p in ("pos", "target_pos", "force_dir")))  # fmt: skip
+    for name, rows in (("seen", ~beyond), ("unseen", beyond)):  # seed A §4.1: tracking there
+        out[f"rms_tracking_error_{name}_m"] = (
+            float(np.sqrt(np.mean(err[rows] ** 2))) if rows.any() else None
+        )
     return out
 
 

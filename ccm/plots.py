@@ -114,17 +114,10 @@ def write_figures(
     axs[0].set_title("Measured external force on the end-effector (F/T sensor, last trial)")
     save(fig, "force.png")
 
-    # 4. stiffness vs time
-    fig, ax = plt.subplots(figsize=(8, 3.5))
-    for name, log in last.items():
-        if "stiffness_Npm" in log:
-            ax.plot(log["t"], log["stiffness_Npm"], label=name)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("stiffness K_p [N/m]")
-    ax.set_title("Controller stiffness (last trial)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    save(fig, "stiffness.png")
+    # 4. stiffness vs time, environment changes marked; per trial (seed A Eq. 4b, Fig. 10a)
+    from ccm.plots_adaptation import write_stiffness_figure
+
+    write_stiffness_figure(last, trials, settings.get("metrics") or {}, save)
 
     # 5. velocity and acceleration vs time
     fig, axs = plt.subplots(2, 1, figsize=(8, 5), sharex=True)

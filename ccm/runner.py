@@ -37,7 +37,12 @@ from ccm.errors import (
     check_positive,
 )
 from ccm.learned_state import load_states, save_states
-from ccm.metrics import aggregate, check_extra_metrics, compute_extra_metrics, trial_metrics
+from ccm.metrics import (
+    check_extra_metrics,
+    compute_extra_metrics,
+    condition_summary,
+    trial_metrics,
+)
 from ccm.records import TrialRecorder, write_atomic, write_json_atomic
 from ccm.sim import make_sim
 from ccm.sim.base import Simulator, check_state_finite
@@ -431,7 +436,7 @@ def run_experiment(
             out_dir / "figures",
             {cond.name: phases[-1][1] for cond, phases in plan},
             logs,
-            settings,
+            {**settings, "metrics": plain(cfg.metrics)},
             trials_out,
         )
     table = contact_table(trials_out)
@@ -441,8 +446,9 @@ def run_experiment(
         "experiment": str(cfg.experiment.name),
         "status": "ok",
         "seed": int(cfg.seed),
+        "task": str(cfg.task.name),
         "conditions": {
-            name: aggregate(
+            name: condition_summary(
                 [
                     {k: v for k, v in t.items() if k not in _TRIAL_KEYS}
                     for t in trials_out

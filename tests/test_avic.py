@@ -177,3 +177,17 @@ def test_calibration_and_fixed_eps0_exclude_each_other() -> None:
         AVIC(calibrate={"quantile": 1.5}, r=None, eps0=None, forward_model=FIXED)
     with pytest.raises(ConfigError, match="controller.calibrate.colour"):
         AVIC(calibrate={"colour": 1}, r=None, eps0=None, forward_model=FIXED)
+
+
+def test_a_frozen_model_calibrates_on_its_training_window() -> None:
+    """AVIC guided by the fixed GMM (seed A §4.1): the model predicts only after trial 1,
+    so eps0 comes from its errors on the trial-1 window."""
+    cal = {"trials": 1, "quantile": 0.9, "shape": 20.0}
+    fm = {"kind": "fixed_gmm", "fixed_gmm": {"fit_steps": None, "n_components": 1}}
+    c = make(calibrate=cal, r=None, eps0=None, forward_model=fm)
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        c.step(obs(force=(-2.0 + rng.normal(0, 0.3), 0.0)), target())
+    assert math.isnan(c.eps0) and not c.model.ready
+    c.end_trial()
+    assert c.model.ready and c.eps0 > 0.0 and c.r == pytest.approx(20.0 / c.eps0)

@@ -78,9 +78,37 @@ def test_ratio_and_trial_references() -> None:
     assert v.verdict == "reproduced" and v.mean == pytest.approx(0.4)
 
 
+def test_a_claim_whose_mechanism_is_inert_does_not_reproduce() -> None:
+    """``requires``: a run counts only if the mechanism acted in it (x.act within bounds)."""
+    c = parse_claim(
+        {**LESS, "requires": [{"condition": "x", "metric": "act", "at_least": 0.02}]}, "claims[0]"
+    )
+
+    def run(act: float | None) -> dict:
+        s = _summary("e", 1.0, 2.0)
+        s["conditions"]["x"]["act"] = act
+        return s
+
+    assert evaluate(c, [run(0.5)] * 3).verdict == "reproduced"
+    inert = evaluate(c, [run(0.0)] * 3)
+    assert inert.verdict == "not reproduced" and "met in 0 of 3" in inert.ours
+    assert "holds in 0 of 3" in inert.ours
+    assert evaluate(c, [run(0.5), run(0.5), run(None)]).verdict == "partially"
+
+
+def test_a_task_claim_reads_only_that_tasks_runs() -> None:
+    c = parse_claim({**LESS, "task": "porridge"}, "claims[0]")
+    runs = [{**_summary("e", 1.0, 2.0), "task": "porridge"},
+            {**_summary("e", 3.0, 2.0), "task": "springs"}]  # fmt: skip
+    v = evaluate(c, runs)
+    assert v.n_seeds == 1 and v.verdict == "reproduced"
+
+
 @pytest.mark.parametrize(
     ("change", "key"),
     [
+        ({"requires": [{"condition": "x", "metric": "m"}]}, "claims[0].requires[0]"),
+        ({"requires": [{"condition": "x", "metric": "m", "at_most": "a"}]}, "requires[0].at_most"),
         ({"compare": "bigger"}, "claims[0].compare"),
         ({"paper": "seed_c"}, "claims[0].paper"),
         ({"a": {"condition": "x"}}, "claims[0].a.metric"),

@@ -122,3 +122,19 @@ def test_saved_model_must_have_the_same_horizon() -> None:
     b = make_forward_model({"kind": "igmm", "horizon_s": 0.05})
     with pytest.raises(ValueError, match="horizon_s"):
         b.load_state_dict(a.state_dict())
+
+
+def test_frozen_gmm_without_fit_steps_fits_on_the_first_trial() -> None:
+    """fit_steps=None: the window is the first trial (any length); then frozen, with its
+    errors on the window kept for AVIC's calibration."""
+    S, D = drag_stream(1500, 80.0, seed=4)
+    m = FrozenGMMForwardModel(fit_steps=None, n_components=2)
+    for s, d in zip(S, D, strict=True):
+        m.update(s, d)
+    assert not m.ready
+    m.end_trial()
+    assert m.ready and m.fit_errors.shape == (len(S),)
+    before = m.predict(S[10]).copy()
+    m.update(S[0], D[0] + 100.0)
+    m.end_trial()
+    np.testing.assert_array_equal(m.predict(S[10]), before)

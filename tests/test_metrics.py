@@ -5,7 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.metrics import aggregate, derivatives, lowpass, motion_error, trial_metrics
+from ccm.metrics import (
+    aggregate,
+    derivatives,
+    force_prediction_metrics,
+    learning_curve,
+    lowpass,
+    motion_error,
+    trial_metrics,
+)
 
 
 def test_lowpass_step_response_time_constant() -> None:
@@ -68,3 +76,34 @@ def test_trial_metrics_on_known_log() -> None:
 def test_aggregate_skips_none() -> None:
     out = aggregate([{"a": 1.0, "b": None}, {"a": 3.0, "b": None}])
     assert out == {"a": 2.0, "b": None}
+
+
+def test_learning_curve_spread_and_ratio() -> None:
+    """Seed A Fig. 7b: a learner still moving in its last ten trials has a spread > 0."""
+    settled = [{"rms_tracking_error_m": e} for e in [4.0, 2.0] + [1.0] * 10]
+    moving = [{"rms_tracking_error_m": e} for e in np.linspace(4.0, 1.0, 12)]
+    assert learning_curve(settled) == {
+        "rms_error_spread_last10": 0.0,
+        "rms_error_last_over_first": 0.25,
+    }
+    spread = learning_curve(moving)["rms_error_spread_last10"]
+    tail = np.linspace(4.0, 1.0, 12)[-10:]
+    assert spread == pytest.approx((tail.max() - tail.min()) / tail.mean())
+    assert learning_curve(settled[:5])["rms_error_spread_last10"] is None, "needs ten trials"
+
+
+def test_force_prediction_splits_tracking_at_the_unseen_viscosity() -> None:
+    n = 100
+    visc = np.linspace(0.0, 150.0, n)
+    err = np.where(visc > 80.0, 0.004, 0.001)  # m, along x
+    z = np.zeros(n)
+    log = {
+        "t": np.arange(n) * 1e-3, "truth_viscosity_Nspm": visc,
+        "pos_x": z, "pos_y": z, "target_pos_x": err, "target_pos_y": z,
+        "force_dir_x": z, "force_dir_y": z, "force_x": z + 1.0, "force_y": z,
+        "pred_force_N": z + 1.0, "persist_force_N": z + 1.5,
+    }  # fmt: skip
+    out = force_prediction_metrics(log, 2, {"unseen_above_Nspm": 80.0})
+    assert out["rms_tracking_error_unseen_m"] == pytest.approx(0.004)
+    assert out["rms_tracking_error_seen_m"] == pytest.approx(0.001)
+    assert out["pred_skill_unseen"] == pytest.approx(1.0), "exact prediction, persistence off"

@@ -219,17 +219,19 @@ def test_avic_runs_the_full_pattern(composer) -> None:
     assert y_travel(run) == pytest.approx(WALL_SLIDE, abs=0.02)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known: AVIC's ff_direction=measured feed-forward (-lambda W_pred along the measured "
-    "force) pushes further into any rigid contact it position-controls against - the table "
-    "while touching, the wall - a positive feedback F = K d / (1 - lambda): 0.2-3 kN peaks",
-)
 def test_avic_contact_forces_stay_bounded(composer) -> None:
-    run = trial(composer, "controller=avic")
+    """AVIC's default feed-forward direction (``along_motion``) cancels no constraint's
+    reaction, so pressing into the table and the wall by position stays bounded. The fixed
+    Eq. 4c values put the feed-forward to work from the first trial (the default calibration
+    would hold K_max without feed-forward in trial 1). With ``measured`` the same trial peaked
+    at 0.2-3 kN (F = K d / (1 - lambda), experiments/h4.md)."""
+    run = trial(composer, "controller=avic", "controller.calibrate=null", "controller.r=2.0",
+                "controller.eps0=5.0")  # fmt: skip
     a = run["a"]
+    lam = a["lambda"][np.isfinite(a["lambda"])]
+    assert np.mean(lam > 0.5) > 0.5, "the feed-forward acts on most steps"
     f = np.linalg.norm(np.stack([a[f"true_force_{ax}"] for ax in "xyz"], axis=1), axis=1)
-    assert f.max() < 200.0  # N: twice the fixed controller's 100 N bound (35 N measured)
+    assert f.max() < 200.0  # N: twice the fixed controller's 100 N bound
 
 
 def test_cli_run_with_wall_friction_override(tmp_path: Path) -> None:

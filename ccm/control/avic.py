@@ -18,8 +18,10 @@ becomes available.
 
 ε₀ and r from data (``calibrate``). Seed A tunes r and ε₀ "for the task". With
 ``calibrate: {trials, quantile, shape}`` they are set from the prediction errors instead:
-the first ``trials`` trials run at K_max without feed-forward (the model is new, as after a
-new mode in Algorithm 1) while the model learns and every ε_t is kept; then
+the first ``trials`` trials in which the model predicts run at K_max without feed-forward
+(the model is new, as after a new mode in Algorithm 1) while it learns and every ε_t is kept
+(a frozen model that only fits at the end of a trial gives its errors on its training window
+instead); then
 ε₀ = the ``quantile`` of those errors and r = ``shape`` / ε₀, so λ(ε₀/2) = 1/(1 + e^{−shape/2})
 and λ(3ε₀/2) = 1 − that (shape 10: 0.993 and 0.007). experiments/tuning/avic.md records why.
 
@@ -63,6 +65,7 @@ from ccm.errors import (
     check_positive,
     constructor_kwargs,
 )
+from ccm.filters import first_order_alpha, lowpass_sequence
 from ccm.learn.forward_model import (
     N_STATE,
     ForecastBuffer,
@@ -74,8 +77,8 @@ from ccm.types import Command, Observation, TargetSample
 
 FF_DIRECTIONS = ("against_motion", "measured", "along_motion")
 _OWN_KEYS = (
-    "k_free", "k_max", "r", "eps0", "calibrate", "adaptive", "feedforward", "ff_direction",
-    "min_speed", "forward_model",
+    "k_free", "k_max", "r", "eps0", "calibrate", "error_lowpass_s", "adaptive", "feedforward",
+    "ff_direction", "min_speed", "forward_model",
 )  # fmt: skip
 _CALIBRATE_KEYS = ("trials", "quantile", "shape")
 
@@ -109,6 +112,8 @@ class AVIC(FixedImpedance):
         eps0: logistic midpoint ε₀ of Eq. 4c [N]; None with ``calibrate``.
         calibrate: ``{trials, quantile, shape}``: set ε₀ and r from the prediction errors of
             the first trials (module docstring), or None to use ``r`` and ``eps0``.
+        error_lowpass_s: time constant [s] of a first-order low-pass on ε_t before Eq. 4c
+            (and the calibration); 0 = the raw error (module docstring).
         adaptive: False fixes K_p = K_max and drops the feed-forward while the model still
             learns and predicts (the fixed-GMM + high-stiffness baseline of seed A §4.1).
         feedforward: add −λ Ŵ (Eq. 4a).
@@ -128,6 +133,7 @@ class AVIC(FixedImpedance):
         r: float | None = 2.0,
         eps0: float | None = 2.0,
         calibrate: Mapping[str, Any] | None = None,
+        error_lowpass_s: float = 0.0,
         adaptive: bool = True,
         feedforward: bool = True,
         ff_direction: str = "measured",
@@ -157,6 +163,7 @@ class AVIC(FixedImpedance):
             self.eps0 = check_nonneg(f"{key}.eps0", eps0)
         self._calib_errors: list[float] = []
         self._calib_trials = 0
+        self.error_lowpass_s = check_nonneg(f"{key}.error_lowpass_s", error_lowpass_s)
         self.adaptive = bool(adaptive)
         self.feedforward = bool(feedforward)
         self.ff_direction = check_choice(f"{key}.ff_direction", ff_direction, FF_DIRECTIONS)
@@ -176,12 +183,19 @@ class AVIC(FixedImpedance):
         self._lam = 0.0  # start stiff (K_max) until the model has proven itself
         h = horizon_steps(self.model.horizon_s, control_dt, f"{self.key}.forward_model.horizon_s")
         self.forecast = ForecastBuffer(h)
+        tau = self.error_lowpass_s
+        self._err_alpha = (
+            1.0 if tau == 0.0 else first_order_alpha(control_dt, 1 / (2 * math.pi * tau))
+        )
+        self._err_lp = math.nan  # ε̄_t: the low-passed error of this trial
         self._signals.update(self._avic_signals(math.nan, math.nan, math.nan, math.nan))
 
     @property
     def calibrating(self) -> bool:
-        """True while ``calibrate`` still collects the errors that set ε₀ and r."""
-        return self.calibrate is not None and self._calib_trials < self.calibrate["trials"]
+        """True while ``calibrate`` still collects the errors that set ε₀ and r (never for the
+        non-adaptive baseline, which does not use them)."""
+        cal = self.calibrate
+        return self.adaptive and cal is not None and self._calib_trials < cal["trials"]
 
     def _avic_signals(self, pred: float, persist: float, err: float, kp: float) -> dict[str, float]:
         return {
@@ -189,6 +203,7 @@ class AVIC(FixedImpedance):
             "pred_force_N": pred,
             "persist_force_N": persist,
             "pred_error_N": err,
+            "pred_error_lp_N": self._err_lp,
             "n_components": float(getattr(self.model, "n_components", 0)),
             "stiffness_Npm": kp,
             "calibrating": float(self.calibrating),
@@ -246,11 +261,13 @@ class AVIC(FixedImpedance):
         return Command(force=u, torque=self.rotation_torque(obs, target))
 
     def _observe_error(self, err: float) -> None:
-        """λ_t of Eq. 4c from ε_t, or keep ε_t for the calibration of ε₀ and r."""
+        """λ_t of Eq. 4c from ε̄_t (ε_t low-passed), or keep ε̄_t to calibrate ε₀ and r."""
+        lp = self._err_lp
+        self._err_lp = err if math.isnan(lp) else lp + self._err_alpha * (err - lp)
         if self.calibrating:
-            self._calib_errors.append(err)
+            self._calib_errors.append(self._err_lp)
         else:
-            self._lam = self.logistic(err)
+            self._lam = self.logistic(self._err_lp)
 
     # Hooks for Algorithm 1 (seed A §3.2), used by ccm.control.modal; plain AVIC learns every
     # step with one model and never forces K_max.
@@ -289,38 +306,41 @@ class AVIC(FixedImpedance):
         self._end_calibration_trial()
 
     def _end_calibration_trial(self) -> None:
-        """Count a calibration trial; after the last one set ε₀ and r (module docstring)."""
+        """Count a calibration trial; after the last one set ε₀ and r (module docstring). A
+        trial in which the model made no prediction (and gave no training-window errors)
+        does not count: the controller stays at K_max until it has errors to go by."""
         if not self.calibrating:
-            return
-        self._calib_trials += 1
-        if self.calibrating:
             return
         cal = self.calibrate
         assert cal is not None
         errs = np.asarray(self._calib_errors, dtype=float)
+        fit = getattr(self.model, "fit_errors", None)
+        if errs.size == 0 and fit is not None and len(fit):  # a frozen model's window
+            errs = lowpass_sequence(np.asarray(fit, dtype=float), self._err_alpha)
         if errs.size == 0:
-            raise ConfigError(
-                f"{self.key}.calibrate",
-                f"no prediction error was measured in the first {cal['trials']} trial(s); "
-                "give longer trials or fixed r and eps0",
-            )
+            return
+        self._calib_trials += 1
+        if self.calibrating:
+            return
         self.eps0 = max(float(np.quantile(errs, cal["quantile"])), 1e-9)
         self.r = cal["shape"] / self.eps0
         self._calib_errors = []
 
     def report(self) -> dict[str, Any]:
         """K_free, K_max and the logistic's ε₀ and r (NaN while calibrating), for metrics."""
-        return {"k_free": self.k_free, "k_max": self.k_max, "eps0": self.eps0, "r": self.r}
+        return {"k_free": self.k_free, "k_max": self.k_max, **self._logistic_params()}
+
+    def _logistic_params(self) -> dict[str, float | None]:
+        """ε₀ and r, None until calibrated (or when a non-adaptive controller never is)."""
+        return {
+            k: (v if math.isfinite(v) else None) for k, v in (("eps0", self.eps0), ("r", self.r))
+        }
 
     def calibration_state(self) -> dict[str, Any]:
         """JSON-safe calibration progress: trials done, ε₀ and r once set, the errors kept."""
-        done = not self.calibrating
-        return {
-            "trials": self._calib_trials,
-            "eps0": self.eps0 if done and self.calibrate is not None else None,
-            "r": self.r if done and self.calibrate is not None else None,
-            "errors": list(self._calib_errors),
-        }
+        cal = self.calibrate is not None and not self.calibrating
+        params = self._logistic_params() if cal else {"eps0": None, "r": None}
+        return {"trials": self._calib_trials, **params, "errors": list(self._calib_errors)}
 
     def load_calibration_state(self, state: Mapping[str, Any]) -> None:
         """Restore :meth:`calibration_state` output (ValueError if it does not fit)."""
@@ -332,7 +352,7 @@ class AVIC(FixedImpedance):
                 raise ValueError("the saved controller was calibrated; this config is not")
             return
         eps0, r = self.eps0, self.r
-        if trials >= self.calibrate["trials"]:
+        if trials >= self.calibrate["trials"] and state["eps0"] is not None:
             eps0, r = check_positive("eps0", state["eps0"]), check_positive("r", state["r"])
         self.eps0, self.r = eps0, r
         self._calib_trials, self._calib_errors = trials, errors

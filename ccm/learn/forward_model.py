@@ -236,13 +236,16 @@ class IncrementalForwardModel:
 
 
 class FrozenGMMForwardModel:
-    """Fixed GMM baseline (seed A §4.1): batch-fit on the first ``fit_steps`` points, frozen.
+    """Fixed GMM baseline (seed A §4.1): batch-fit on its training window, then frozen.
 
-    Points are collected across trials until ``fit_steps`` are seen; the mixture is fit then
-    and never revised. Before the fit it predicts zeros (and says so through ``ready``).
+    Points are collected across trials until ``fit_steps`` are seen, or (``fit_steps=None``)
+    until the end of the first trial that gave any; the mixture is fit then and never
+    revised. Before the fit it predicts zeros (and says so through ``ready``).
 
     Args:
-        fit_steps: number of points in the training window ("the initial phase").
+        fit_steps: number of points in the training window ("the initial phase"), or None:
+            the points of the first trial (seed A §4.1: "the sensor measurements collected
+            during the initial phase"; a horizon of H steps gives a trial H fewer points).
         n_components: mixture size for ``sklearn.mixture.GaussianMixture``.
         feature_scale: as for :class:`IncrementalForwardModel`.
         random_state: seed of the k-means initialisation (reproducible fits).
@@ -252,7 +255,7 @@ class FrozenGMMForwardModel:
 
     def __init__(
         self,
-        fit_steps: int = 6000,
+        fit_steps: int | None = 6000,
         n_components: int = 1,
         feature_scale: Sequence[float] = DEFAULT_SCALE,
         random_state: int = 0,
@@ -260,15 +263,20 @@ class FrozenGMMForwardModel:
         horizon_s: float = DEFAULT_HORIZON_S,
         key: str = "controller.forward_model",
     ) -> None:
-        self.fit_steps = check_int_positive(f"{key}.fit_steps", fit_steps)
+        self.fit_steps = (
+            None if fit_steps is None else check_int_positive(f"{key}.fit_steps", fit_steps)
+        )
         self.n_components = check_int_positive(f"{key}.n_components", n_components)
         self.scale = _check_scale(feature_scale, f"{key}.feature_scale")
         self.horizon_s = check_positive(f"{key}.horizon_s", horizon_s)
         self.random_state = int(random_state)
         self.reg_covar = check_positive(f"{key}.reg_covar", reg_covar)
-        self._buf = np.empty((self.fit_steps, N_STATE + N_EFFECT))
+        self._buf = np.empty((self.fit_steps or 4096, N_STATE + N_EFFECT))
         self._n = 0
         self._params: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        #: ‖D − D̂‖ on the training window once fit, in order (AVIC's calibration of ε₀
+        #: uses them when the model could not predict during its calibration trials)
+        self.fit_errors = np.zeros(0)
 
     @property
     def ready(self) -> bool:
@@ -278,6 +286,8 @@ class FrozenGMMForwardModel:
         """Collect X_t until the training window is full, then fit once."""
         if self._params is not None:
             return
+        if self._n == len(self._buf):  # fit_steps=None: the window grows with the trial
+            self._buf = np.concatenate([self._buf, np.empty_like(self._buf)])
         self._buf[self._n, :N_STATE] = s_prev
         self._buf[self._n, N_STATE:] = d_now
         self._n += 1
@@ -299,6 +309,9 @@ class FrozenGMMForwardModel:
 
         self._params = (gm.weights_.copy(), gm.means_.copy(), gm.covariances_.copy())
         self._gmr = GMRConditional(*self._params, IN_IDX, OUT_IDX)  # cached factorisations
+        pts = self._buf[: self._n]
+        pred = np.array([self.predict(x) for x in pts[:, :N_STATE]])
+        self.fit_errors = np.linalg.norm(pts[:, N_STATE:] - pred, axis=1)
         self._buf = np.empty((0, N_STATE + N_EFFECT))
 
     def predict(self, s_now: np.ndarray) -> np.ndarray:
@@ -309,7 +322,9 @@ class FrozenGMMForwardModel:
         return np.asarray(mean, dtype=float) * self.scale[N_STATE:]
 
     def end_trial(self) -> None:
-        """Nothing to do: the model is frozen after its window."""
+        """With ``fit_steps=None``, fit on the first trial's points; else nothing to do."""
+        if self.fit_steps is None and self._params is None and self._n > 0:
+            self._fit()
 
     def state_dict(self) -> dict[str, Any]:
         """JSON-safe learned state: the collected points before the fit, the mixture after."""
@@ -345,13 +360,13 @@ class FrozenGMMForwardModel:
             gmr = GMRConditional(*params, IN_IDX, OUT_IDX)  # validates the mixture
             self._params, self._gmr = params, gmr  # type: ignore[assignment]
             self._buf = np.empty((0, N_STATE + N_EFFECT))
-            self._n = self.fit_steps
+            self._n = 0
             return
         pts = np.asarray(data.get("points"), dtype=float).reshape(-1, N_STATE + N_EFFECT)
         if not np.all(np.isfinite(pts)):
             raise ValueError("forward model state: points must be finite")
-        n = min(len(pts), self.fit_steps)
-        self._buf = np.empty((self.fit_steps, N_STATE + N_EFFECT))
+        n = len(pts) if self.fit_steps is None else min(len(pts), self.fit_steps)
+        self._buf = np.empty((max(self.fit_steps or 0, n, 1), N_STATE + N_EFFECT))
         self._buf[:n] = pts[:n]
         self._n, self._params = n, None
         if n == self.fit_steps:
