@@ -71,6 +71,8 @@ def write_stiffness_figure(
         for (name, metric), pts in series.items():
             xs, ys = zip(*pts, strict=True)
             label, style = SERIES[metric]
+            if metric == "mean_stiffness_unseen_Npm" and params.get("unseen_above_Nspm"):
+                label = f"viscosity > {float(params['unseen_above_Nspm']):g} N s/m"
             color = f"C{list(last).index(name)}" if name in last else f"C{names.index(name)}"
             ax.plot(xs, ys, style, marker="o", ms=2.5, color=color, label=f"{name}: {label}")
         ax.set_xlabel("trial")

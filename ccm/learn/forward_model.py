@@ -177,7 +177,10 @@ class IncrementalForwardModel:
         self.horizon_s = check_positive(f"{key}.horizon_s", horizon_s)
         self.model = IGMM(N_STATE + N_EFFECT, **(igmm or {}), key=f"{key}.igmm")
         self._gmr = self.model.conditional(IN_IDX, OUT_IDX)  # refreshed by the model itself
-        self._x = np.empty(N_STATE + N_EFFECT)
+        # reused buffers of the per-step calls (the IGMM's row fast paths)
+        self._x = np.empty((1, N_STATE + N_EFFECT))
+        self._x_in = np.empty((1, N_STATE))
+        self._y = np.empty((1, N_EFFECT))
 
     @property
     def ready(self) -> bool:
@@ -186,16 +189,18 @@ class IncrementalForwardModel:
 
     def update(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
         """Add X_t = [S_{t−1}, D_t] (Eq. 5, one incremental step)."""
-        self._x[:N_STATE] = s_prev
-        self._x[N_STATE:] = d_now
-        self.model.partial_fit(self._x / self.scale)
+        x, scale = self._x[0], self.scale  # X / scale, as the IGMM sees every point
+        np.divide(s_prev, scale[:N_STATE], out=x[:N_STATE])
+        np.divide(d_now, scale[N_STATE:], out=x[N_STATE:])
+        self.model.partial_fit_row(self._x)
 
     def predict(self, s_now: np.ndarray) -> np.ndarray:
         """D̂_{t+1} = f_fm(S_t) by GMR (Eq. 6); zeros before the first point."""
         if not self.ready:
             return np.zeros(N_EFFECT)
-        y = self._gmr.predict(s_now / self.scale[:N_STATE])
-        return np.asarray(y, dtype=float) * self.scale[N_STATE:]
+        np.divide(s_now, self.scale[:N_STATE], out=self._x_in[0])
+        self._gmr.predict_into(self._x_in, self._y)
+        return self._y[0] * self.scale[N_STATE:]
 
     def end_trial(self) -> None:
         """Nothing to do: the model learns every step."""

@@ -341,6 +341,20 @@ class GMRConditional:
         mean, _, single = self._run(x_in, False)
         return mean[0] if single else mean
 
+    def predict_into(self, x_in: np.ndarray, out: np.ndarray) -> None:
+        """:meth:`predict` of one input into ``out`` without conversions, for a control loop.
+
+        Args:
+            x_in: float64 C-contiguous array of shape (1, n_in).
+            out: float64 C-contiguous array of shape (1, n_out), overwritten.
+        """
+        status = _k.gmr_rows(
+            x_in, self._split, self._means, self._covs, self._comp, self._istate, self._cache,
+            out, self._no_cov, False,
+        )  # fmt: skip
+        if status != 0:
+            self._raise(status)
+
     def predict_cov(self, x_in: Any) -> tuple[np.ndarray, np.ndarray]:
         """Conditional mean and covariance of x_out given x_in.
 

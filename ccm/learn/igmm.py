@@ -351,6 +351,23 @@ class IGMM:
             raise ValueError(f"X: row {-status - 1} is not finite; the model was not changed")
         return self
 
+    def partial_fit_row(self, row: np.ndarray) -> None:
+        """:meth:`partial_fit` of one point without the input conversion, for a control loop.
+
+        Args:
+            row: float64 C-contiguous writable array of shape (1, d), e.g. a buffer the caller
+                reuses (not kept).
+
+        Raises:
+            ValueError: a non-finite value (the model is left unchanged).
+        """
+        status = _k.fit_rows(
+            row, self._means, self._covs, self._chols, self._comp, self._istate, self._params,
+            self._sigma2, self._work,
+        )  # fmt: skip
+        if status:
+            raise ValueError("X: the point is not finite; the model was not changed")
+
     def fit(self, X: Any) -> IGMM:
         """:meth:`reset`, then :meth:`partial_fit` on the rows of ``X`` in order."""
         rows, _ = as_rows(X, self.n_features, "X")
