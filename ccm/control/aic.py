@@ -76,8 +76,8 @@ class AIC(Controller):
 
     def __init__(
         self,
-        k_mu: float = 200.0,
-        k_a: float = 5000.0,
+        k_mu: float = 50.0,
+        k_a: float = 500.0,
         sigma_y: float = 1.0,
         sigma_yp: float = 1.0,
         sigma_mu: float = 1.0,
