@@ -101,7 +101,7 @@ def test_horizon_steps_needs_whole_control_periods() -> None:
 def test_forecast_buffer_pairs_states_and_predictions_h_steps_apart(h: int) -> None:
     """At step t: past() gives S_{t-H} and the prediction made from it; after push(S_t),
     next_prediction() is the one made from S_{t+1-H} (for H = 1: the one just pushed)."""
-    buf = ForecastBuffer(h, n_state=1, n_effect=1)
+    buf = ForecastBuffer(h)
     for t in range(12):
         state, pred = buf.past()
         if t < h:

@@ -240,7 +240,7 @@ class AVIC(FixedImpedance):
         if s_past is not None:
             if pred_now is not None and self.model.ready:
                 pred, persist = float(pred_now[0]), float(s_past[2])
-                err = math.hypot(d[0] - pred_now[0], d[1] - pred_now[1])
+                err = math.hypot(d[0] - pred, d[1] - pred_now[1])
                 self._observe_error(err)
             self.learn(s_past, d)
         stiff = not self.adaptive or self.calibrating or self.hold_k_max()
@@ -255,9 +255,13 @@ class AVIC(FixedImpedance):
             w = self.predicted_wrench(float(pred_next[0]), obs)
             if target.force_dir is not None:
                 w = w - target.force_dir * float(target.force_dir @ w)
-            u = u - lam * w
-        self._signals.update(self._avic_signals(pred, persist, err, kp))
-        self._signals["damping_Nspm"] = kd
+            u -= lam * w
+        sig = self._signals  # the fixed key set of _avic_signals, updated in place
+        sig["lambda"], sig["pred_force_N"], sig["persist_force_N"] = self._lam, pred, persist
+        sig["pred_error_N"], sig["pred_error_lp_N"] = err, self._err_lp
+        sig["stiffness_Npm"], sig["damping_Nspm"] = kp, kd
+        sig["n_components"] = float(getattr(self.model, "n_components", 0))
+        sig["calibrating"] = 1.0 if self.calibrating else 0.0
         return Command(force=u, torque=self.rotation_torque(obs, target))
 
     def _observe_error(self, err: float) -> None:
@@ -284,22 +288,19 @@ class AVIC(FixedImpedance):
 
     def predicted_wrench(self, f_mag: float, obs: Observation) -> np.ndarray:
         """Ŵ: the predicted external force as a vector (see ``ff_direction``)."""
-        if self.ff_direction == "along_motion":
-            speed = math.sqrt(float(obs.lin_vel @ obs.lin_vel))
-            fm = math.sqrt(float(obs.force @ obs.force))
-            if speed < self.min_speed or fm < 1e-9:
-                return np.zeros(obs.position.shape[0])
-            v_hat = obs.lin_vel / speed
-            return (f_mag * float(obs.force @ v_hat) / fm) * v_hat
+        if self.ff_direction == "measured":
+            fm = math.hypot(*obs.force.tolist())
+            return obs.force * (f_mag / fm) if fm >= 1e-9 else np.zeros(obs.position.shape[0])
+        speed = math.hypot(*obs.lin_vel.tolist())
+        if speed < self.min_speed:
+            return np.zeros(obs.position.shape[0])
         if self.ff_direction == "against_motion":
-            speed = math.sqrt(float(obs.lin_vel @ obs.lin_vel))
-            if speed < self.min_speed:
-                return np.zeros(obs.position.shape[0])
-            return -f_mag * obs.lin_vel / speed
-        fm = math.sqrt(float(obs.force @ obs.force))
+            return obs.lin_vel * (-f_mag / speed)
+        fm = math.hypot(*obs.force.tolist())  # along_motion
         if fm < 1e-9:
             return np.zeros(obs.position.shape[0])
-        return f_mag * obs.force / fm
+        along = float(obs.force @ obs.lin_vel) / speed  # F·v̂
+        return obs.lin_vel * (f_mag * along / (fm * speed))
 
     def end_trial(self) -> None:
         self.model.end_trial()

@@ -51,10 +51,10 @@ def magnitudes(
     """S_t of Eq. 2: [‖ẋ_lin‖, ‖ẋ_rot‖, ‖F‖, ‖τ‖]."""
     return np.array(
         [
-            math.sqrt(float(lin_vel @ lin_vel)),
-            math.sqrt(float(ang_vel @ ang_vel)),
-            math.sqrt(float(force @ force)),
-            math.sqrt(float(torque @ torque)),
+            math.hypot(*lin_vel.tolist()),
+            math.hypot(*ang_vel.tolist()),
+            math.hypot(*force.tolist()),
+            math.hypot(*torque.tolist()),
         ]
     )
 
@@ -78,48 +78,37 @@ class ForecastBuffer:
     D̂_{t+H} = f(S_t) (seed A Eq. 5–6 with the model's step = H control periods). At control
     step t the buffer gives back S_{t−H} and D̂_t (made H steps ago) for the error and the
     learning point, and D̂_{t+1} (made H − 1 steps ago, or now if H = 1) for the feed-forward
-    of the command that acts until t + 1. Fixed-size arrays: no allocation per step.
+    of the command that acts until t + 1. It keeps references, not copies: the caller passes
+    arrays it does not modify afterwards (AVIC makes fresh ones every step).
 
     Args:
         horizon: H >= 1 control steps.
-        n_state, n_effect: lengths of S and D.
     """
 
-    def __init__(self, horizon: int, n_state: int = N_STATE, n_effect: int = N_EFFECT) -> None:
+    def __init__(self, horizon: int) -> None:
         self.horizon = check_int_positive("forward_model.horizon", horizon)
-        self._states = np.zeros((self.horizon, n_state))
-        self._preds = np.zeros((self.horizon, n_effect))
-        self._has_state = np.zeros(self.horizon, dtype=bool)
-        self._has_pred = np.zeros(self.horizon, dtype=bool)
-        self._k = 0  # control steps pushed since the reset
+        self._states: list[np.ndarray | None] = [None] * self.horizon
+        self._preds: list[np.ndarray | None] = [None] * self.horizon
+        self._i = 0  # slot of the step about to be pushed: (steps pushed) mod H
 
     def past(self) -> tuple[np.ndarray | None, np.ndarray | None]:
         """(S_{t−H}, D̂_t) for the step about to be pushed; None where not available (the
-        first H steps of a trial, or no prediction was made then). Views: copy to keep."""
-        i = self._k % self.horizon
-        state = self._states[i] if self._has_state[i] else None
-        return state, (self._preds[i] if self._has_pred[i] else None)
+        first H steps of a trial, or no prediction was made then)."""
+        return self._states[self._i], self._preds[self._i]
 
     def push(self, state: np.ndarray, prediction: np.ndarray | None) -> None:
         """Store S_t and D̂_{t+H} = f(S_t) (None: the model could not predict yet)."""
-        i = self._k % self.horizon
-        self._states[i] = state
-        self._has_state[i] = True
-        if prediction is None:
-            self._has_pred[i] = False
-        else:
-            self._preds[i] = prediction
-            self._has_pred[i] = True
-        self._k += 1
+        i = self._i
+        self._states[i], self._preds[i] = state, prediction
+        self._i = i + 1 if i + 1 < self.horizon else 0
 
     def next_prediction(self) -> np.ndarray | None:
         """D̂_{t+1} after :meth:`push` of step t: the prediction for the next control step."""
-        i = self._k % self.horizon
-        return self._preds[i] if self._has_pred[i] else None
+        return self._preds[self._i]
 
     def forget_predictions(self) -> None:
         """Drop every stored prediction (the model that made them was replaced)."""
-        self._has_pred[:] = False
+        self._preds = [None] * self.horizon
 
 
 def _check_scale(scale: Sequence[float], key: str) -> np.ndarray:
