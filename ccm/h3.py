@@ -10,32 +10,46 @@ An experiment with ``experiment.kind: h3`` runs :func:`run_h3` instead of the tr
    (0.6; medium_multi's trials at that friction when it has them); ``high_multi``: high
    stiffness, the same frictions; ``medium_test`` / ``high_test``: the test friction (0.9).
    Saved as ``data/<name>.npz``.
-2. **Variants** (seed A §4.4.1-4.4.3), on the data subsampled every ``subsample`` steps:
-   ``joint_single`` / ``joint_multi`` / ``joint_high``: (i) joint space, X = [q, q̇] → next,
-   rolled out over the whole test trial from its first state; ``task_long``: (ii)
-   X = [F, ẋ] → next F, rolled out with the test trial's measured ẋ as exogenous input;
-   ``task_one_step``: (iii) the same model fed the real [F_t, ẋ_t] every step; ``igmm``:
-   ccm's incremental forward model (IGMM + GMR, Eq. 2-6), trained by streaming the
-   training trials through it and revised online during the test trial, one step ahead,
-   on ‖F‖ (its features are magnitudes; ‖ω‖ and ‖τ‖ are taken as 0: the data hold neither,
-   and the tool's orientation is held); ``persistence``: ‖F̂_{t+1}‖ = ‖F_t‖, the naive
-   reference every one-step predictor must beat.
-3. **Metrics** per variant, averaged over the test trials: ``joint_pred_rmse_rad`` (all 7
-   joints), ``force_pred_rmse_N`` (on ‖F‖, the quantity every variant can be scored on;
-   ``force_pred_rmse_wall_N`` on the steps in contact with the wall, the unseen friction),
-   ``force_y_pred_rmse_N`` (along the wall, seed A Figs 13-14; GP variants only),
-   ``coverage_95`` (fraction of true values inside mean ± 1.96 std;
-   ``coverage_95_wall`` after the wall contact), the mean band width
-   ``band_width_rad`` / ``band_width_N`` and ``joint_lag_s`` (the delay that best aligns the
-   true joint trajectory with the prediction; > 0: the truth lags, seed A Fig. 11). Training and
+2. **Variants** (seed A §4.4.1-4.4.3), on the data subsampled every ``subsample`` steps
+   (one H3 step = ``subsample`` control periods, 10 ms), one row each:
+
+   * ``joint_single`` / ``joint_multi`` / ``joint_high``: (i) joint space, X = [q, q̇] →
+     next, rolled out over the whole test trial from its first state (Figs 11a, 11b, 12).
+   * ``task_long``: (ii) the task-space GP as seed A §4.4.2 writes it, p(F_{t+1} | F_t, ẋ_t):
+     it predicts the *absolute* next force; rolled out with the test trial's measured ẋ as
+     exogenous input (Fig. 13).
+   * ``task_one_step``: (iii) the same absolute GP fed the real [F_t, ẋ_t] every step
+     (§4.4.3, Fig. 14a).
+   * ``task_long_delta`` / ``task_one_step_delta``: as (ii) / (iii) with a separately fitted
+     GP of the *increment* F_{t+1} − F_t (``predict_delta``), which falls back to
+     persistence away from its data where the absolute GP falls back to its mean; not seed
+     A's formulation (ccm's main rows until issue #16). Both task-space GPs are fitted on
+     the same points and share one mode classifier.
+   * ``igmm``: ccm's incremental forward model (IGMM + GMR, Eq. 2-6), trained by streaming
+     the training trials through it and revised online during the test trial, one step
+     ahead, on ‖F‖ (its features are magnitudes; ‖ω‖ and ‖τ‖ are taken as 0: the data hold
+     neither, and the tool's orientation is held). Its ``forward_model.horizon_s`` must be
+     one H3 step (checked). For F_y its ‖F̂‖ is put along the latest measured force,
+     F̂ = ‖F̂‖ F_t / ‖F_t‖ (Fig. 14b).
+   * ``persistence``: F̂_{t+1} = F_t, the naive reference every one-step predictor must beat.
+3. **Metrics** per variant, averaged over the test trials (:mod:`ccm.h3_scores`; "wall":
+   the steps in contact with the wall, after the wall contact, at the unseen friction):
+   ``joint_pred_rmse_rad`` (all 7 joints), ``force_pred_rmse_N`` (on ‖F‖, the quantity
+   every variant can be scored on; ``force_pred_rmse_wall_N`` after the wall contact),
+   ``force_y_pred_rmse_N`` / ``force_y_pred_rmse_wall_N`` (F_y along the wall, Figs 13-14;
+   every force-predicting variant), ``coverage_95`` (share of true values inside mean ±
+   1.96 std; ``coverage_95_wall``, and ``coverage_95_y_wall`` for F_y, after the wall
+   contact), the mean band width ``band_width_rad`` / ``band_width_N`` /
+   ``band_width_y_wall_N`` and ``joint_lag_s`` (the delay that best aligns the true joint
+   trajectory with the prediction; > 0: the truth lags, seed A Fig. 11). Training and
    prediction times are wall-clock facts and go to ``run_info.json`` (``make bench``).
 """
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +58,7 @@ from omegaconf import DictConfig
 
 from ccm.errors import ConfigError, check_int_positive, config_block
 from ccm.h3_data import collect, load_dataset, save_dataset
+from ccm.h3_scores import Y, along_latest, gp_force_scores, joint_scores, norm_force_scores
 from ccm.learn.forward_model import N_STATE, make_forward_model
 from ccm.learn.svm_gp import ModalGPDynamics
 from ccm.records import write_json_atomic
@@ -144,41 +159,34 @@ def _task(tr: Trial) -> np.ndarray:
     return np.hstack([tr["force"], tr["velocity"]])
 
 
-def _lag(truth: np.ndarray, pred: np.ndarray, dt: float, max_s: float = 2.0) -> float:
-    """Delay [s] that best aligns the truth with the prediction (least squares over the
-    overlap): > 0 when the truth lags the prediction (seed A Fig. 11), < 0 when it leads."""
-    n = len(truth)
-    best, best_k = math.inf, 0
-    for k in range(-int(max_s / dt), int(max_s / dt) + 1):
-        a, b = (truth[k:], pred[: n - k]) if k >= 0 else (truth[: n + k], pred[-k:])
-        err = float(np.mean((a - b) ** 2))
-        if err < best:
-            best, best_k = err, k
-    return best_k * dt
-
-
-def _coverage(truth: np.ndarray, mean: np.ndarray, std: np.ndarray) -> float:
-    return float(np.mean(np.abs(truth - mean) <= 1.96 * std))
-
-
-def _rmse(a: np.ndarray, b: np.ndarray) -> float | None:
-    """Root-mean-square difference; None for no samples (e.g. a trial that never reached
-    the wall)."""
-    d = np.asarray(a) - np.asarray(b)
-    return float(np.sqrt(np.mean(d**2))) if d.size else None
-
-
-def _fit(train: Sequence[Trial], inputs: Callable, n_out: int, h3: Mapping, seed: int) -> tuple:
-    x, y, m = _pairs(train, inputs, n_out)
-    model = ModalGPDynamics(**dict(h3.get("baseline") or {}), seed=seed, key="h3.baseline")
+def _fit(
+    pairs: tuple, h3: Mapping, seed: int, classifier: ModalGPDynamics | None = None, **kw: Any
+) -> tuple[ModalGPDynamics, float]:
+    """A :class:`ModalGPDynamics` fitted on ``pairs`` (:func:`_pairs`) and its fit time [s];
+    ``kw`` override ``h3.baseline`` (e.g. ``predict_delta``)."""
+    opts = dict(h3.get("baseline") or {}) | kw
+    model = ModalGPDynamics(**opts, seed=seed, key="h3.baseline")
     t0 = time.perf_counter()
-    model.fit(x, y, m)
+    model.fit(*pairs, classifier=classifier)
     return model, time.perf_counter() - t0
 
 
+def _check_horizon(fm: Any, step_s: float) -> None:
+    """The forward model predicts one H3 step ahead (``subsample`` control steps): its
+    ``horizon_s`` must say so, or a saved model would state a wrong horizon."""
+    if abs(fm.horizon_s - step_s) > 1e-6:
+        raise ConfigError(
+            "h3.forward_model.horizon_s",
+            f"must be one H3 step, h3.subsample control periods = {step_s:g} s; "
+            f"got {fm.horizon_s:g}",
+        )
+
+
 def _igmm(train: Sequence[Trial], test: Trial, h3: Mapping) -> tuple[np.ndarray, float, float]:
-    """One-step ‖F‖ predictions of the incremental model on ``test`` (module docstring)."""
+    """One-step ‖F‖ predictions of the incremental model on ``test`` (module docstring):
+    element k - 1 predicts ‖F_k‖, k = 1 .. n - 1."""
     fm = make_forward_model(dict(h3.get("forward_model") or {}), "h3.forward_model")
+    _check_horizon(fm, float(np.median(np.diff(test["t"]))))
 
     def states(tr: Trial) -> np.ndarray:
         s = np.zeros((len(tr["t"]), N_STATE))
@@ -193,12 +201,99 @@ def _igmm(train: Sequence[Trial], test: Trial, h3: Mapping) -> tuple[np.ndarray,
             fm.update(s[k - 1], s[k, 2:])
     t_train = time.perf_counter() - t0
     s = states(test)
-    pred = np.full(len(s), np.nan)
+    pred = np.full(len(s) - 1, np.nan)
     t0 = time.perf_counter()
     for k in range(1, len(s)):
-        pred[k] = fm.predict(s[k - 1])[0]  # D̂_k from S_{k-1}, before D_k is seen
+        pred[k - 1] = fm.predict(s[k - 1])[0]  # D̂_k from S_{k-1}, before D_k is seen
         fm.update(s[k - 1], s[k, 2:])  # then learn from it (incremental, seed A §3.1)
     return pred, t_train, time.perf_counter() - t0
+
+
+@dataclass
+class _Results:
+    """What :func:`evaluate` returns: score rows, wall-clock times and figure curves."""
+
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    times: dict[str, float] = field(default_factory=dict)
+    curves: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+
+    def add_time(self, key: str, t0: float) -> None:
+        self.times[key] = self.times.get(key, 0.0) + time.perf_counter() - t0
+
+    def curve(self, name: str, tr: Trial, truth: np.ndarray, mean: np.ndarray, std=None) -> None:
+        """The first test trial's curve of ``name`` (later trials are not plotted)."""
+        if name not in self.curves:
+            wall = np.flatnonzero(tr["mode"] == 2)
+            self.curves[name] = {
+                "t": tr["t"][1:], "truth": truth, "mean": mean,
+                "std": np.full_like(mean, np.nan) if std is None else std,
+                "contact_t": np.array(tr["t"][wall[0]] if wall.size else np.nan),
+            }  # fmt: skip
+
+
+#: joint-space variant -> (training set, test set), seed A §4.4.1
+JOINT = {"joint_single": ("medium_single", "medium_test"),
+         "joint_multi": ("medium_multi", "medium_test"),
+         "joint_high": ("high_multi", "high_test")}  # fmt: skip
+#: task-space GP -> ``predict_delta``: "" the absolute GP p(F_{t+1} | F_t, ẋ_t) of seed A
+#: §4.4.2, "_delta" the increment GP (module docstring)
+TASK = {"": False, "_delta": True}
+
+
+def _joint_variants(
+    d: Mapping[str, Sequence[Trial]], h3: Mapping, seed: int, res: _Results
+) -> None:
+    """Rows of the joint-space long-horizon variants (seed A §4.4.1, Figs 11-12)."""
+    for name, (train, test) in JOINT.items():
+        model, res.times[f"{name}_train_s"] = _fit(_pairs(d[train], _joint, 14), h3, seed)
+        t0 = time.perf_counter()
+        for i, tr in enumerate(d[test], start=1):
+            x = _joint(tr)
+            mean, std, _ = model.rollout(x[0], len(x) - 1)
+            dt = float(np.median(np.diff(tr["t"])))
+            res.rows.append({"condition": name, "trial": i, **joint_scores(x[1:], mean, std, dt)})
+            res.curve(name, tr, x[1:, 0], mean[:, 0], std[:, 0])  # joint 1 (seed A Fig. 11)
+        res.add_time(f"{name}_predict_s", t0)
+
+
+def _task_variants(d: Mapping[str, Sequence[Trial]], h3: Mapping, seed: int, res: _Results) -> None:
+    """Rows of the task-space GPs, long horizon (§4.4.2, Fig. 13) and one step with feedback
+    (§4.4.3, Fig. 14a), absolute and increment; the two GPs share one mode classifier."""
+    pairs = _pairs(d["medium_multi"], _task, 3)
+    shared = None
+    for sfx, delta in TASK.items():
+        model, res.times[f"task{sfx}_train_s"] = _fit(pairs, h3, seed, shared, predict_delta=delta)
+        shared = shared or model
+        for i, tr in enumerate(d["medium_test"], start=1):
+            x = _task(tr)
+            truth, wall = x[1:, :3], tr["mode"][1:] == 2  # wall: the unseen friction (0.9)
+            t0 = time.perf_counter()
+            mean, std, _ = model.rollout(x[0], len(x) - 1, exog=x[:, 3:])
+            res.add_time(f"task_long{sfx}_predict_s", t0)
+            t0 = time.perf_counter()
+            mean1, std1 = model.predict_step(x[:-1])
+            res.add_time(f"task_one_step{sfx}_predict_s", t0)
+            for name, (m, s) in {"task_long": (mean, std), "task_one_step": (mean1, std1)}.items():
+                res.rows.append(
+                    {"condition": name + sfx, "trial": i, **gp_force_scores(truth, m, s, wall)}
+                )
+                res.curve(name + sfx, tr, truth[:, Y], m[:, Y], s[:, Y])  # F_y, Figs 13, 14a
+
+
+def _incremental_variants(d: Mapping[str, Sequence[Trial]], h3: Mapping, res: _Results) -> None:
+    """Rows of ccm's incremental model and of persistence (Fig. 14b), one step ahead."""
+    for i, tr in enumerate(d["medium_test"], start=1):
+        pred, t_train, t_pred = _igmm(d["medium_multi"], tr, h3)
+        res.times["igmm_train_s"] = res.times.get("igmm_train_s", 0.0) + t_train
+        res.times["igmm_predict_s"] = res.times.get("igmm_predict_s", 0.0) + t_pred
+        f, wall = tr["force"], tr["mode"][1:] == 2
+        res.rows.append({"condition": "igmm", "trial": i, **norm_force_scores(pred, f, wall)})
+        # naive reference: the next F equals the last one (what a one-step model must beat)
+        persist = np.linalg.norm(f[:-1], axis=1)
+        res.rows.append(
+            {"condition": "persistence", "trial": i, **norm_force_scores(persist, f, wall)}
+        )
+        res.curve("igmm", tr, f[1:, Y], along_latest(pred, f[:-1])[:, Y])  # F_y (Fig. 14b)
 
 
 def evaluate(
@@ -209,86 +304,11 @@ def evaluate(
     wall contact); see the module docstring."""
     k = h3["subsample"]
     d = {name: [_sub(tr, k) for tr in trials] for name, trials in data.items()}
-    rows: list[dict[str, Any]] = []
-    times: dict[str, float] = {}
-    curves: dict[str, dict[str, np.ndarray]] = {}
-
-    def curve(name: str, tr: Trial, truth, mean, std=None) -> None:
-        if name not in curves:
-            wall = np.flatnonzero(tr["mode"] == 2)
-            curves[name] = {
-                "t": tr["t"][1:], "truth": truth, "mean": mean,
-                "std": np.full_like(mean, np.nan) if std is None else std,
-                "contact_t": np.array(tr["t"][wall[0]] if wall.size else np.nan),
-            }  # fmt: skip
-
-    joint = {"joint_single": ("medium_single", "medium_test"),
-             "joint_multi": ("medium_multi", "medium_test"),
-             "joint_high": ("high_multi", "high_test")}  # fmt: skip
-    for name, (train, test) in joint.items():
-        model, times[f"{name}_train_s"] = _fit(d[train], _joint, 14, h3, seed)
-        t0 = time.perf_counter()
-        for i, tr in enumerate(d[test], start=1):
-            x = _joint(tr)
-            mean, std, _ = model.rollout(x[0], len(x) - 1)
-            truth = x[1:]
-            rows.append({
-                "condition": name, "trial": i,
-                "joint_pred_rmse_rad": _rmse(mean[:, :7], truth[:, :7]),
-                "coverage_95": _coverage(truth[:, :7], mean[:, :7], std[:, :7]),
-                "band_width_rad": float(np.mean(2 * 1.96 * std[:, :7])),
-                "joint_lag_s": _lag(truth[:, :7], mean[:, :7], float(np.median(np.diff(tr["t"])))),
-            })  # fmt: skip
-            curve(name, tr, truth[:, 0], mean[:, 0], std[:, 0])  # joint 1 (seed A Fig. 11)
-        times[f"{name}_predict_s"] = time.perf_counter() - t0
-    model, times["task_train_s"] = _fit(d["medium_multi"], _task, 3, h3, seed)
-    for i, tr in enumerate(d["medium_test"], start=1):
-        x = _task(tr)
-        truth = x[1:, :3]
-        t0 = time.perf_counter()
-        mean, std, _ = model.rollout(x[0], len(x) - 1, exog=x[:, 3:])
-        times["task_long_predict_s"] = (
-            times.get("task_long_predict_s", 0.0) + time.perf_counter() - t0
-        )
-        wall = tr["mode"][1:] == 2  # after the wall contact: the unseen friction (0.9)
-        rows.append(_force_row("task_long", i, truth, mean, std, wall))
-        curve("task_long", tr, truth[:, 1], mean[:, 1], std[:, 1])  # F_y (seed A Fig. 13)
-        t0 = time.perf_counter()
-        mean1, std1 = model.predict_step(x[:-1])
-        times["task_one_step_predict_s"] = (
-            times.get("task_one_step_predict_s", 0.0) + time.perf_counter() - t0
-        )
-        rows.append(_force_row("task_one_step", i, truth, mean1, std1, wall))
-        curve("task_one_step", tr, truth[:, 1], mean1[:, 1], std1[:, 1])  # Fig. 14a
-        pred, t_train, t_pred = _igmm(d["medium_multi"], tr, h3)
-        times["igmm_train_s"], times["igmm_predict_s"] = t_train, t_pred
-        f = np.linalg.norm(tr["force"], axis=1)
-        rows.append({"condition": "igmm", "trial": i,
-                     "force_pred_rmse_N": _rmse(pred[1:], f[1:]),
-                     "force_pred_rmse_wall_N": _rmse(pred[1:][wall], f[1:][wall])})  # fmt: skip
-        # naive reference: the next ‖F‖ equals the last one (what a one-step model must beat)
-        rows.append({"condition": "persistence", "trial": i,
-                     "force_pred_rmse_N": _rmse(f[:-1], f[1:]),
-                     "force_pred_rmse_wall_N": _rmse(f[:-1][wall], f[1:][wall])})  # fmt: skip
-        curve("igmm", tr, f[1:], pred[1:])  # ‖F‖ (Fig. 14b: ccm's model)
-    return rows, times, curves
-
-
-def _force_row(
-    name: str, i: int, truth: np.ndarray, mean: np.ndarray, std: np.ndarray, wall: np.ndarray
-) -> dict:
-    """‖F‖ and F_y scores of a force-predicting GP variant (‖F̂‖ from the predicted vector);
-    ``wall`` marks the steps after the wall contact."""
-    f_hat, f = np.linalg.norm(mean, axis=1), np.linalg.norm(truth, axis=1)
-    return {
-        "condition": name, "trial": i,
-        "force_pred_rmse_N": _rmse(f_hat, f),
-        "force_pred_rmse_wall_N": _rmse(f_hat[wall], f[wall]),
-        "force_y_pred_rmse_N": _rmse(mean[:, 1], truth[:, 1]),
-        "coverage_95": _coverage(truth, mean, std),
-        "coverage_95_wall": _coverage(truth[wall], mean[wall], std[wall]) if wall.any() else None,
-        "band_width_N": float(np.mean(2 * 1.96 * std)),
-    }  # fmt: skip
+    res = _Results()
+    _joint_variants(d, h3, seed, res)
+    _task_variants(d, h3, seed, res)
+    _incremental_variants(d, h3, res)
+    return res.rows, res.times, res.curves
 
 
 def run_h3(cfg: DictConfig, compose: Callable, out_dir: Path) -> dict[str, Any]:

@@ -189,3 +189,19 @@ def test_fast_gpr_matches_sklearn_lml_and_gradient(n_out: int, kernel_name: str)
         np.testing.assert_allclose(g_fast, g_ref, rtol=1e-7, atol=1e-7 * np.abs(g_ref).max())
         assert fast.log_marginal_likelihood(theta) == pytest.approx(v_ref, rel=1e-10)
     assert fast.log_marginal_likelihood() == pytest.approx(ref.log_marginal_likelihood(), rel=1e-12)
+
+
+def test_absolute_and_increment_gps_share_one_classifier(fitted) -> None:
+    """The absolute GP (seed A §4.4.2's p(F_{t+1} | F_t, ẋ_t)) can reuse an increment GP's
+    mode classifier; away from the data it reverts to its mean, the increment GP to
+    persistence (the next state = the current one)."""
+    model, data = fitted
+    absolute = ModalGPDynamics(max_points_per_mode=200, seed=3, predict_delta=False)
+    absolute.fit(*data, classifier=model)
+    assert absolute.svc_ is model.svc_
+    far = np.array([[0.3, 50.0]])  # y far outside the training range [0, ~1.2]
+    assert model.predict_step(far)[0][0, 1] == pytest.approx(50.0, abs=1.0)
+    assert abs(absolute.predict_step(far)[0][0, 1]) < 5.0
+    X, Y, modes = data
+    with pytest.raises(ConfigError, match="classifier"):
+        ModalGPDynamics(seed=3).fit(X[:300], Y[:300], modes[:300], classifier=model)

@@ -137,7 +137,13 @@ class ModalGPDynamics:
             return idx
         return np.sort(rng.choice(idx, size=n_max, replace=False))
 
-    def fit(self, X: np.ndarray, Y: np.ndarray, modes: np.ndarray) -> ModalGPDynamics:
+    def fit(
+        self,
+        X: np.ndarray,
+        Y: np.ndarray,
+        modes: np.ndarray,
+        classifier: ModalGPDynamics | None = None,
+    ) -> ModalGPDynamics:
         """Fit the mode classifier and the per-mode GPs (Khader et al. 2020; seed A §4.4).
 
         Each mode's data are randomly subsampled (seeded) to ``max_points_per_mode`` points,
@@ -152,12 +158,17 @@ class ModalGPDynamics:
             X: inputs at t, shape (N, d_in).
             Y: outputs at t+1, shape (N, d_out) with d_out <= d_in (see the class docstring).
             modes: integer mode labels, shape (N,); every mode needs at least 2 points.
+            classifier: a model already fitted on the same X and modes whose mode classifier
+                to share instead of fitting an identical one (e.g. an absolute and an
+                increment GP of the same data, seed A §4.4.2-4.4.3). The seeded subsample
+                draws are made as without it, so the GPs get the same points.
 
         Returns:
             self.
 
         Raises:
-            ConfigError: bad shapes, non-finite values, or a mode with fewer than 2 points.
+            ConfigError: bad shapes, non-finite values, a mode with fewer than 2 points, or a
+                ``classifier`` fitted on other data.
         """
         t0 = time.perf_counter()
         k = self.key
@@ -201,9 +212,12 @@ class ModalGPDynamics:
                 )
                 for c, cnt in zip(classes, counts, strict=True)
             ]
-            idx = np.concatenate(sel)
-            self.svc_ = SVC(kernel="rbf", C=self.svc_c, gamma="scale")
-            self.svc_.fit((X[idx] - self.x_mean_) / self.x_std_, modes[idx])
+            if classifier is not None:
+                self.svc_ = self._shared_svc(classifier)
+            else:
+                idx = np.concatenate(sel)
+                self.svc_ = SVC(kernel="rbf", C=self.svc_c, gamma="scale")
+                self.svc_.fit((X[idx] - self.x_mean_) / self.x_std_, modes[idx])
 
         # --- per-mode GPs
         target = Y - X[:, :d_out] if self.predict_delta else Y
@@ -240,6 +254,20 @@ class ModalGPDynamics:
             self.gp_x_std_.append(xs)
         self.fit_time_s_ = time.perf_counter() - t0
         return self
+
+    def _shared_svc(self, other: ModalGPDynamics) -> SVC | None:
+        """``other``'s SVC, after checking it was fitted on the same inputs and modes."""
+        same = (
+            hasattr(other, "gps_")
+            and other.d_in_ == self.d_in_
+            and np.array_equal(other.classes_, self.classes_)
+            and np.allclose(other.x_mean_, self.x_mean_)
+            and np.allclose(other.x_std_, self.x_std_)
+        )
+        if not same:
+            msg = "must be a model fitted on the same X and modes"
+            raise ConfigError(f"{self.key}.classifier", msg)
+        return other.svc_
 
     # --------------------------------------------------------------- prediction
     def _check_fitted(self) -> None:
