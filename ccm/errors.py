@@ -1,7 +1,7 @@
 """User-facing errors and input checks.
 
 Every check names the configuration key it guards and the allowed range, so the CLI can
-print one line and exit non-zero (DESIGN.md, "Errors a user can cause").
+print one line and exit non-zero (the README's contract for bad input).
 """
 
 from __future__ import annotations

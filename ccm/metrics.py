@@ -1,4 +1,4 @@
-"""Per-trial metrics from a trial log (DESIGN.md summary.json contract; names carry units)."""
+"""Per-trial metrics from a trial log (the summary.json metrics; names carry units)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 
 from ccm.adaptation_metrics import measured_force_norm, prediction_skill, stiffness_adaptation
 from ccm.contact_metrics import contact_metrics
-from ccm.errors import check_positive
+from ccm.errors import check_int_positive, check_positive
 from ccm.filters import first_order_alpha, lowpass_sequence
 from ccm.mode_metrics import mode_metrics
 from ccm.mpc_metrics import gp_mpc_metrics
@@ -125,32 +125,33 @@ def aggregate(trials: Sequence[Mapping[str, float | None]]) -> dict[str, float |
     return out
 
 
-#: trials at the end of a condition over which learning_curve judges convergence
-CONVERGENCE_TRIALS = 10
-
-
-def learning_curve(trials: Sequence[Mapping[str, float | None]]) -> dict[str, float | None]:
+def learning_curve(
+    trials: Sequence[Mapping[str, float | None]], last_n: int = 10
+) -> dict[str, float | None]:
     """Across-trial facts of one condition's RMS tracking error (seed A Fig. 7b).
 
-    ``rms_error_spread_last10``: (max − min) / mean of the last ten trials' errors, 0 for a
-    settled learner (None with fewer than ten trials); ``rms_error_last_over_first``: the
-    last trial's error over the first's.
+    ``rms_error_spread_last10``: (max − min) / mean of the last ``last_n`` trials' errors
+    (``metrics.convergence_trials``), 0 for a settled learner, None with fewer trials;
+    ``rms_error_last_over_first``: the last trial's error over the first's.
     """
     e = [float(t["rms_tracking_error_m"]) for t in trials
          if isinstance(t.get("rms_tracking_error_m"), int | float)]  # fmt: skip
-    tail = np.asarray(e[-CONVERGENCE_TRIALS:])
+    n = check_int_positive("metrics.convergence_trials", last_n)
+    tail = np.asarray(e[-n:])
     return {
         "rms_error_spread_last10": float(np.ptp(tail) / np.mean(tail))
-        if len(e) >= CONVERGENCE_TRIALS and np.mean(tail) > 0
+        if len(e) >= n and np.mean(tail) > 0
         else None,
         "rms_error_last_over_first": e[-1] / e[0] if len(e) > 1 and e[0] > 0 else None,
     }
 
 
-def condition_summary(trials: Sequence[Mapping[str, float | None]]) -> dict[str, float | None]:
+def condition_summary(
+    trials: Sequence[Mapping[str, float | None]], convergence_trials: int = 10
+) -> dict[str, float | None]:
     """A condition's entry in summary.json: the trial means (:func:`aggregate`) and the
     :func:`learning_curve` of its trials (in trial order)."""
-    return {**aggregate(trials), **learning_curve(trials)}
+    return {**aggregate(trials), **learning_curve(trials, convergence_trials)}
 
 
 def force_prediction_metrics(

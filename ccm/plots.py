@@ -166,7 +166,7 @@ def write_figures(
         ax.legend(fontsize=8)
         save(fig, "error_vs_trial.png")
 
-    # 7. one-step force prediction vs measurement (seed A Fig. 4)
+    # 7. force prediction vs measurement (seed A Fig. 4), made H = horizon_s earlier
     pred = {n: log for n, log in last.items() if "pred_force_N" in log}
     if pred:
         fig, axs = plt.subplots(
@@ -175,7 +175,8 @@ def write_figures(
         for ax, (name, log) in zip(axs[:, 0], pred.items(), strict=True):
             f = np.linalg.norm(_axes_arrays(log, "force", dim), axis=1)
             ax.plot(log["t"], f, color="tab:green", lw=1.2, label="measured |F|")
-            ax.plot(log["t"], log["pred_force_N"], color="tab:red", lw=1, label="predicted |F|")
+            pred, label = log["pred_force_N"], "predicted |F| (from S_{t-H})"
+            ax.plot(log["t"], pred, color="tab:red", lw=1, label=label)
             ax.set_ylabel("|F| [N]")
             ax.set_title(name, fontsize=9)
             ax.grid(alpha=0.3)
@@ -185,7 +186,7 @@ def write_figures(
                 ax2.set_ylabel("viscosity [N s/m]", color="0.4")
             ax.legend(fontsize=8, loc="upper left")
         axs[-1, 0].set_xlabel("time [s]")
-        fig.suptitle("One-step force prediction (last trial)")
+        fig.suptitle("Force predicted one model step (horizon_s) earlier (last trial)")
         save(fig, "force_prediction.png")
 
     # 8. contact modes with confidences; stiffness and error around transitions (seed A Figs 9-10)

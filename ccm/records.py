@@ -1,4 +1,4 @@
-"""Trial time series and atomic file writes for the run directory (DESIGN.md, run directory)."""
+"""Trial time series and atomic file writes for the run directory (layout: README)."""
 
 from __future__ import annotations
 

@@ -453,7 +453,8 @@ def run_experiment(
                     {k: v for k, v in t.items() if k not in _TRIAL_KEYS}
                     for t in trials_out
                     if t["condition"] == name and t["phase"] == phase
-                ]
+                ],
+                cfg.metrics.get("convergence_trials", 10),
             )
             for name, phase in last_phase.items()
         },
@@ -477,7 +478,7 @@ _TRIAL_KEYS = ("condition", "phase", "trial", "seed")
 
 
 def failed_summary(cfg: DictConfig | None, error: str) -> dict[str, Any]:
-    """The summary.json of a failed run (DESIGN.md contract)."""
+    """The summary.json of a failed run (status ``failed`` and the cause)."""
     name = None
     seed = None
     if cfg is not None:

@@ -1,4 +1,4 @@
-"""Data passed between simulator, task and controller (DESIGN.md, "Data flow of one run").
+"""Data passed between simulator, task and controller (Observation in, Command out).
 
 Shapes use ``n`` = task-space dimension (2 for the planar world, 3 for PyBullet) and ``r`` =
 rotational dimension (1 in 2D: angle about z; 3 in 3D).

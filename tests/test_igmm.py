@@ -171,7 +171,7 @@ def test_jump_of_100_sigma_stays_positive_definite():
 
 
 def test_point_beyond_2_sigma_of_young_component_stays_positive_definite():
-    """The case that breaks the commonly quoted update (FIELD-NOTES): w ~ 0.5, e > 2 sigma."""
+    """The case that breaks the commonly quoted Engel & Heinen update: w ~ 0.5, e > 2 sigma."""
     rng = np.random.default_rng(5)
     for _ in range(50):
         model = IGMM(4, sigma_init=1.0, novelty_chi2_quantile=0.999999)

@@ -154,7 +154,7 @@ class GPMPCProblem:
         weights: cost weights (:class:`Weights`).
         continuity_slack: ϱ of Eq. 13.
         gp_var_scale: factor on the GP variance in the dynamics (1 = the paper; seed B's
-            reference code uses 10, FIELD-NOTES).
+            public reference code uses 10, a constant the paper does not state).
         chance: None or {f_max [N], epsilon, quantile: "normal" | "paper_erfinv"} (Eq. 18).
         well_damped: None or {zeta, stiffness: "gp_gradient" | "fixed", fixed_stiffness}
             (Eq. 19-20).

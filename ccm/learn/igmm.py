@@ -26,9 +26,11 @@ mixture models"):
    C_j <- (1 - w_j) C_j + w_j (1 - w_j) e e^T + w_j * cov_floor * I.
    The first two terms are the exact weighted-moment update; the version often quoted,
    (1 - w) C + w e* e*^T - dmu dmu^T, loses positive definiteness on real data
-   (FIELD-NOTES). The last term is the covariance floor: by induction every eigenvalue of
-   C_j stays >= cov_floor (it is the moment update of points blurred by N(0, cov_floor I),
-   like scikit-learn's ``reg_covar``), so no eigen-decomposition is needed per step.
+   within a dozen points when a point lies > 2 sigma from a young component (w ~ 0.5;
+   ``tests/test_igmm.py``). The last term is the covariance floor: by induction every
+   eigenvalue of C_j stays >= cov_floor (it is the moment update of points blurred by
+   N(0, cov_floor I), like scikit-learn's ``reg_covar``), so no eigen-decomposition is needed
+   per step.
    Then components with v_j > v_min and sp_j < sp_min are removed (never the last one).
 5. Priors p(j) = sp_j / sum_q sp_q.
 

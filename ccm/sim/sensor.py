@@ -2,7 +2,7 @@
 
 The measurement model is ``measured = true + bias + noise`` with ``noise ~ N(0, diag(std²))``
 drawn independently per axis and per sample from a ``numpy.random.Generator`` given at
-:meth:`FTSensor.reset` (DESIGN.md: randomness only through a seeded generator). The sensor
+:meth:`FTSensor.reset` (all randomness flows through a seeded generator). The sensor
 never sees the command or gravity: the simulator passes it the external wrench only.
 
 It is dimension-agnostic (force ``(n,)``, torque ``(r,)``) so the 2D pymunk and the 3D

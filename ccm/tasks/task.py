@@ -3,7 +3,7 @@
 A task says *what* the robot must do (seed A §3: the target pattern P of pose and force targets)
 and *where* (the scene: surfaces, springs, viscous fields…). The scene is passed through as a
 plain mapping; the simulator validates it. This module must not import ``ccm.sim`` or
-``ccm.control`` (DESIGN.md, "Imports point one way").
+``ccm.control`` (imports point one way: tasks never import control).
 """
 
 from __future__ import annotations
