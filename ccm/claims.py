@@ -12,14 +12,18 @@ seeds):
 
 * ``less_than``: ``a < b`` (``a``, ``b`` references);
 * ``ratio_at_most``: ``a / b <= value``;
-* ``at_most`` / ``at_least``: ``a <= value`` / ``a >= value``.
+* ``at_most`` / ``at_least``: ``a <= value`` / ``a >= value``;
+* ``difference_at_most``: ``a − b <= value`` (e.g. a time cost in seconds);
+* ``within``: ``|a − value| <= tolerance · |value|`` (``tolerance`` a fraction, e.g. 0.15).
 
 Verdict over n seeds, from d = the per-seed margin (``b − a``, ``value − a/b``,
-``value − a`` or ``a − value``; positive when the claim holds): **reproduced** when the
+``value − a``, ``a − value``, ``value − (a − b)`` or ``tolerance · |value| − |a − value|``;
+positive when the claim holds): **reproduced** when the
 lower end of the 95 % confidence interval of the mean margin (t-interval; for one seed the
-margin itself) is > 0 (≥ 0 for the bounds ``at_most`` / ``at_least``, which hold at
-equality), **partially** when only the mean margin is, **not reproduced** otherwise. A claim
-whose values are missing is **not measured**.
+margin itself) is > 0 (≥ 0 for the bounds ``at_most``, ``at_least``,
+``difference_at_most`` and ``within``, which hold at equality), **partially** when only the
+mean margin is, **not reproduced** otherwise. A claim whose values are missing is
+**not measured**.
 
 A claim about a mechanism may name ``requires``: references with bounds
 (``{condition, metric, at_least, at_most}``) that show the mechanism acting in a run, e.g.
@@ -41,9 +45,11 @@ import numpy as np
 
 from ccm.errors import ConfigError, check_keys
 
-COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least")
+COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least", "difference_at_most", "within")
+_TWO_REFS = ("less_than", "ratio_at_most", "difference_at_most")
 _CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment", "compare",
-               "a", "b", "value", "figures", "note", "discussion", "requires", "task")  # fmt: skip
+               "a", "b", "value", "tolerance", "figures", "note", "discussion", "requires",
+               "task")  # fmt: skip
 _REF_KEYS = ("condition", "metric", "trial")
 _REQ_KEYS = (*_REF_KEYS, "at_least", "at_most")
 # two-sided 95 % Student-t quantiles for 1..30 degrees of freedom (larger: normal 1.96)
@@ -109,6 +115,7 @@ class Claim:
     a: Ref
     b: Ref | None = None
     value: float | None = None
+    tolerance: float | None = None  # ``within`` only: a fraction of |value|
     figures: tuple[str, ...] = ()
     note: str = ""
     discussion: str = ""  # the protocol note that discusses the outcome (experiments/*.md)
@@ -172,13 +179,23 @@ def parse_claim(d: Any, key: str) -> Claim:
     if compare not in COMPARISONS:
         raise ConfigError(f"{key}.compare", f"must be one of {', '.join(COMPARISONS)}")
     a = _ref(f"{key}.a", d.get("a"))
-    b = _ref(f"{key}.b", d.get("b")) if compare in ("less_than", "ratio_at_most") else None
+    b = _ref(f"{key}.b", d.get("b")) if compare in _TWO_REFS else None
     value = None
     if compare != "less_than":
         v = d.get("value")
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise ConfigError(f"{key}.value", f"a finite number is required for {compare}")
         value = float(v)
+    tolerance = None
+    if compare == "within":
+        tol = d.get("tolerance")
+        if isinstance(tol, bool) or not isinstance(tol, int | float) or not 0 < tol < math.inf:
+            raise ConfigError(
+                f"{key}.tolerance", f"a fraction > 0 is required for within, got {tol!r}"
+            )
+        tolerance = float(tol)
+    elif d.get("tolerance") is not None:
+        raise ConfigError(f"{key}.tolerance", f"is only used with compare: within, not {compare}")
     figures = d.get("figures") or []
     if not isinstance(figures, list) or not all(isinstance(f, str) for f in figures):
         raise ConfigError(f"{key}.figures", "must be a list of figure file names")
@@ -190,6 +207,7 @@ def parse_claim(d: Any, key: str) -> Claim:
         id=str(d["id"]), paper=d["paper"], source=str(d["source"]),
         statement=str(d["statement"]), paper_value=str(d["paper_value"]),
         experiment=str(d["experiment"]), compare=compare, a=a, b=b, value=value,
+        tolerance=tolerance,
         figures=tuple(figures), note=str(d.get("note", "")),
         discussion=str(d.get("discussion", "")), requires=requires,
         task=None if d.get("task") is None else str(d["task"]),
@@ -225,12 +243,18 @@ def _margin(c: Claim, s: Mapping[str, Any]) -> tuple[float, float] | None:
     if c.compare in ("at_most", "at_least"):
         assert c.value is not None
         return a, (c.value - a) if c.compare == "at_most" else (a - c.value)
+    if c.compare == "within":
+        assert c.value is not None and c.tolerance is not None
+        return a, c.tolerance * abs(c.value) - abs(a - c.value)
     assert c.b is not None
     b = c.b.value(s)
     if b is None:
         return None
     if c.compare == "less_than":
         return a - b, b - a
+    if c.compare == "difference_at_most":
+        assert c.value is not None
+        return a - b, c.value - (a - b)
     if b == 0.0:
         return None
     assert c.value is not None
@@ -283,7 +307,11 @@ def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
         verdict = "not reproduced"
     elif not all(acting) and verdict == "reproduced":
         verdict = "partially"
-    what = {"less_than": f"{claim.a} − {claim.b}", "ratio_at_most": f"{claim.a} / {claim.b}"}
+    what = {
+        "less_than": f"{claim.a} − {claim.b}",
+        "difference_at_most": f"{claim.a} − {claim.b}",
+        "ratio_at_most": f"{claim.a} / {claim.b}",
+    }
     label = what.get(claim.compare, str(claim.a))
     n = len(margins)
     spread = f"(n = {n}, one seed: no interval)" if n < 2 else f"± {q_ci:.2g} (n = {n})"

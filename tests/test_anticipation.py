@@ -9,6 +9,7 @@ import pytest
 
 from ccm.control.anticipation import AnticipatoryAVIC
 from ccm.control.contact_events import TransitionWindow
+from ccm.control.contact_regions import region_mask
 from ccm.errors import ConfigError
 from ccm.types import Observation, TargetSample
 
@@ -39,10 +40,10 @@ def test_speed_reaches_the_approach_velocity_at_p_c(pattern) -> None:
     speeds = [np.linalg.norm(retimed.sample(t).velocity) for t in np.linspace(t_c, w.release, 500)]
     assert max(speeds) <= 0.05 + 1e-9
     assert max(speeds) == pytest.approx(0.05, rel=0.01)
-    assert retimed.warp.rate(t_c) == pytest.approx(retimed.warp.rate(w.release - 1e-6))
-    belief = c.contact_map.contacts[0].belief
-    assert belief.region_contains(s.position, 2.0)  # p_c is on the region's boundary
-    assert not belief.region_contains(retimed.sample(t_c - 0.01).position, 2.0)
+    belief = c.contact_map.contacts[0].belief  # C: 2 sigma of P + R (ccm.control.contact_regions)
+    assert region_mask(belief, s.position[None, :], 2.0)[0]  # p_c is on the region's boundary
+    before = retimed.warp.inverse(retimed.warp.phi(t_c) - c.path_dt)  # the plan sample before
+    assert not region_mask(belief, retimed.sample(before).position[None, :], 2.0)[0]
     assert retimed.duration > pattern.duration  # slower through C
     assert w.alpha(w.t0, c.blend_s) == 0.0 and w.alpha(t_c, c.blend_s) == 1.0  # Eq. 10 ramp
 

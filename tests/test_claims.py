@@ -78,6 +78,19 @@ def test_ratio_and_trial_references() -> None:
     assert v.verdict == "reproduced" and v.mean == pytest.approx(0.4)
 
 
+def test_difference_and_within() -> None:
+    """``difference_at_most``: a − b <= value; ``within``: |a − value| <= tolerance·|value|."""
+    diff = parse_claim({**LESS, "compare": "difference_at_most", "value": 3.7}, "claims[0]")
+    assert evaluate(diff, [_summary("e", 16.0, 13.0)] * 3).verdict == "reproduced"
+    v = evaluate(diff, [_summary("e", 20.0, 13.0)] * 3)
+    assert v.verdict == "not reproduced" and v.mean == pytest.approx(7.0)
+    within = {**LESS, "compare": "within", "value": 8.0, "tolerance": 0.15, "b": None}
+    c = parse_claim(within, "claims[0]")
+    assert evaluate(c, [_summary("e", 9.2, 0.0)] * 3).verdict == "reproduced"  # at the edge
+    assert evaluate(c, [_summary("e", 6.0, 0.0)] * 3).verdict == "not reproduced"
+    assert evaluate(c, [_summary("e", 10.0, 0.0)] * 3).verdict == "not reproduced"
+
+
 def test_a_claim_whose_mechanism_is_inert_does_not_reproduce() -> None:
     """``requires``: a run counts only if the mechanism acted in it (x.act within bounds)."""
     c = parse_claim(
@@ -114,6 +127,8 @@ def test_a_task_claim_reads_only_that_tasks_runs() -> None:
         ({"a": {"condition": "x"}}, "claims[0].a.metric"),
         ({"a": {"condition": "x", "metric": "m", "trial": 0}}, "claims[0].a.trial"),
         ({"compare": "at_most"}, "claims[0].value"),
+        ({"compare": "within", "value": 8.0}, "claims[0].tolerance"),
+        ({"compare": "at_most", "value": 8.0, "tolerance": 0.1}, "claims[0].tolerance"),
         ({"colour": "red"}, "claims[0].colour"),
         ({"statement": ""}, "claims[0].statement"),
     ],

@@ -8,11 +8,14 @@ On top of :class:`ccm.control.modal.ModalAVIC` (Eq. 4a–4c, Algorithm 1):
   each detected contact. The region C of a contact is its belief ellipsoid at
   ``sigma_scale``.
 * **Re-timing** (§3.5.2, Eq. 11): at the start of each trial the planned pattern is re-timed
-  so that inside every collision's region C the target moves no faster than that contact's
-  learned approach velocity v_a (Eq. 9, :class:`ccm.learn.approach.ApproachVelocityModel`):
-  the slow-down is complete where the path first enters C (p_c); the slow phase lasts until
-  the contact is made (or the path leaves C) and then the plan's speed returns, all with C∞
-  rate changes. Overlapping regions (wide early beliefs) merge into one slow span.
+  so that wherever the path approaches a collision inside its region C the target moves no
+  faster than that contact's learned approach velocity v_a (Eq. 9,
+  :class:`ccm.learn.approach.ApproachVelocityModel`), a speed limit along the path
+  (:mod:`ccm.control.contact_regions`: C from the belief and the detection noise, capped
+  per plan segment, every approaching pass). The slow-down is complete where the pass
+  begins (p_c); it lasts until the contact is made (or the path leaves C), and then the
+  plan's speed returns, all with C∞ rate changes. Holds, slow segments and the path outside
+  C keep the plan's timing.
 * **Transition-phase controllers** (§3.4, Eq. 8) blended in by Eq. 10: before an expected
   collision K* = ``k_collision``, with the base's force loop kept across the motion (the
   10 N press while sliding into a wall) but not along it (there the re-timed target, not a
@@ -43,6 +46,7 @@ import numpy as np
 
 from ccm.control.avic import _OWN_KEYS as _AVIC_KEYS
 from ccm.control.contact_events import ContactEvents, TransitionWindow
+from ccm.control.contact_regions import approach_passes, in_plan_order, speed_pieces, to_segment_end
 from ccm.control.impedance import FixedImpedance, impedance_term
 from ccm.control.modal import ModalAVIC
 from ccm.errors import ConfigError, check_keys, check_nonneg, check_positive, constructor_kwargs
@@ -63,9 +67,9 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
     """AVIC + Algorithm 1 + contact anticipation and transition handling (seed A §3.3–3.5).
 
     Args:
-        anticipation: ``sigma_scale`` (region C, Mahalanobis radius),
-            ``min_region_radius_m`` (floor on C's semi-axes [m]: the plan runs inside the
-            surfaces it presses on, so the tool meets a contact off the planned path),
+        anticipation: ``sigma_scale`` (region C, Mahalanobis radius under the innovation
+            covariance P + R: :mod:`ccm.control.contact_regions`), ``min_region_radius_m``
+            (floor on C's semi-axes [m], for the tool's lag behind its target),
             ``blend_s`` (T of Eq. 10 and of the Eq. 11 rate changes [s]), ``k_collision``
             (K* of Eq. 8 before a collision [N/m]), ``path_dt`` (sampling of the plan for p_c [s]),
             ``init_noise_std`` / ``init_std`` (vision-noise and initial belief std [m]),
@@ -190,20 +194,27 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         ts = np.arange(0.0, pattern.duration + 0.5 * self.path_dt, self.path_dt)
         path = pattern.sample_many(ts)
         pos, speed = path["position"], np.linalg.norm(path["velocity"], axis=1)
-        self._plan_ts, self._plan_speed = ts, speed
-        entries = []
-        for i, c in enumerate(self.contact_map.contacts):
-            k = c.belief.first_entry(pos, self.sigma_scale, self.min_region_m)
-            if k is None:
-                continue
-            inside = c.belief.region_contains(pos[k:], self.sigma_scale, "path", self.min_region_m)
-            out = np.flatnonzero(~np.atleast_1d(inside))
-            exit_k = k + int(out[0]) if out.size else len(ts) - 1
-            v_a = c.approach.next_velocity() if c.approach is not None else math.inf
-            entries.append((float(ts[k]), i, c.kind, float(ts[exit_k]), v_a))
-        entries.sort()
-        self._slow = [(i, pc, px, va) for pc, i, kind, px, va in entries if kind == "collision"]
-        self._impactless = [(i, pc, px) for pc, i, kind, px, _ in entries if kind != "collision"]
+        self._slow, self._impactless = [], []
+        contacts = self.contact_map.contacts
+        passes = [
+            approach_passes(c.belief, pos, self.sigma_scale, self.min_region_m) for c in contacts
+        ]
+        ordered = [
+            i for i, c in enumerate(contacts) if c.kind == "collision" and c.source == "config"
+        ]
+        for i, ps in zip(ordered, in_plan_order([passes[i] for i in ordered]), strict=True):
+            passes[i] = ps
+        for i, c in enumerate(contacts):
+            for p in passes[i]:
+                if c.kind != "collision":
+                    self._impactless.append((i, float(ts[p.start]), float(ts[p.exit])))
+                    continue
+                v_a = c.approach.next_velocity() if c.approach is not None else math.inf
+                p = to_segment_end(p, path["segment"])
+                pieces = speed_pieces(ts, speed, path["segment"], [p], v_a)
+                self._slow.append((i, float(ts[p.start]), float(ts[p.exit]), pieces))
+        self._slow.sort(key=lambda e: e[1])
+        self._impactless.sort(key=lambda e: e[1])
         self._changes, self._rate0 = [], 1.0
         self._replan(0.0)
         return self._retimed
@@ -211,14 +222,13 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
     def _replan(self, t_from: float) -> None:
         """(Re)build the warp from wall time ``t_from`` on, keeping earlier rate changes.
 
-        Every collision not yet made has a slow span [φ_e, φ_x] of the plan: from where the
-        path enters its region C (or ``t_from``'s φ, if the path is inside C already) to where
-        it leaves C, with rate ρ = v_a / (the plan's top speed in the span), so the target
-        never moves faster than v_a inside C. Overlapping spans (large regions in early
-        trials) merge: the rate is the smallest of the spans covering φ. A slow-down is
-        complete where its span begins (Eq. 10: the switch is complete on reaching C); a
-        speed-up starts where the last covering span ends; each change lasts ``blend_s``
-        (shorter if the plan leaves no room) with Eq. 11's C∞ profile.
+        Every approaching pass through the region C of a collision not yet made brings its
+        speed-limit pieces (:func:`ccm.control.contact_regions.speed_pieces`: per plan
+        segment, ρ = v_a / the segment's top speed in C; holds and slow segments keep ρ = 1),
+        so the target never moves faster than v_a inside C. Where pieces overlap, the
+        smallest rate applies. A slow-down is complete where its piece begins (Eq. 10: the
+        switch is complete on reaching C); a speed-up starts where the piece ends; each change
+        lasts ``blend_s`` (shorter if the plan leaves no room) with Eq. 11's C∞ profile.
         """
         changes = [c for c in self._changes if c[0] < t_from]
         warp = TimeWarp(changes, rate0=self._rate0)
@@ -226,15 +236,11 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         phi_from = float(warp.phi(t_from)) if t_from > 0 else 0.0
         cur = changes[-1][2] if changes else self._rate0
         t_free = max(t_from, changes[-1][1] if changes else 0.0)
-        spans = []
-        for i, phi_c, phi_x, v_a in self._slow:
+        spans = []  # (φ_start, φ_end, ρ, contact) of the speed-limit pieces still ahead
+        for i, _, phi_x, pieces in self._slow:
             if i in self._hits or phi_x <= phi_from:
                 continue
-            phi_e = max(phi_c, phi_from)
-            sel = (self._plan_ts >= phi_e - 1e-12) & (self._plan_ts <= phi_x + 1e-12)
-            v_ref = float(np.max(self._plan_speed[sel])) if np.any(sel) else 0.0
-            rho = min(1.0, v_a / v_ref) if v_ref > 1e-6 else 1.0
-            spans.append((phi_e, phi_x, rho, i))
+            spans += [(max(e, phi_from), x, r, i) for e, x, r in pieces if x > phi_from]
 
         def wanted(phi: float) -> float:
             return min([r for e, x, r, _ in spans if e <= phi < x] + [1.0])
@@ -257,11 +263,13 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             changes.append((t_s, t_s + dur, r))
             warp = TimeWarp(changes, rate0=self._rate0)
             cur, t_free = r, t_s + dur
-        for phi_e, phi_x, _, i in spans:
-            if phi_e <= phi_from:  # inside C now: the transition controller at once
+        for i, phi_c, phi_x, _ in self._slow:  # one transition window per approaching pass
+            if i in self._hits or phi_x <= phi_from:
+                continue
+            if phi_c <= phi_from:  # inside C now: the transition controller at once
                 t0 = t1 = t_from
             else:
-                t1 = warp.inverse(phi_e)
+                t1 = warp.inverse(phi_c)
                 t0 = max(t1 - self.blend_s, t_from)
             windows.append(TransitionWindow(i, "collision", t0, t1 + 1e-9, warp.inverse(phi_x)))
         for i, phi_c, phi_x in self._impactless:
@@ -386,11 +394,11 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
     def report(self) -> dict[str, Any]:
         """``contacts``: per contact belief, its name, kind and source, ``mean`` [m], ``std``
         (the largest standard deviation along an axis, the ± of seed A Table 1 [m]),
-        ``region_m`` (the largest semi-axis of region C, floor included [m]), ``prior_mean``
-        / ``prior_std`` (the same before the trial; None for a contact first seen in it) and,
-        for a
-        collision made this trial, ``approach_velocity`` (the commanded speed Eq. 9 recorded,
-        m/s) and ``impact_force`` (the F_m it measured, N); plus :meth:`AVIC.report`."""
+        ``region_m`` (the largest semi-axis of region C, R and floor included [m]),
+        ``prior_mean`` / ``prior_std`` (the same before the trial; None for a contact first
+        seen in it) and, for a collision made this trial, ``approach_velocity`` (the commanded
+        speed Eq. 9 recorded, m/s) and ``impact_force`` (the F_m it measured, N); plus
+        :meth:`AVIC.report`."""
         out = []
         contacts = self.contact_map.contacts if self.contact_map is not None else []
         for i, c in enumerate(contacts):
@@ -402,7 +410,8 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                 "mean": c.belief.mean.tolist(),
                 "std": float(np.sqrt(np.max(np.diag(c.belief.cov)))),
                 "region_m": max(
-                    self.sigma_scale * float(np.sqrt(np.max(np.diag(c.belief.cov)))),
+                    self.sigma_scale
+                    * float(np.sqrt(np.max(np.linalg.eigvalsh(c.belief.cov + c.belief.R)))),
                     self.min_region_m,
                 ),
                 "prior_mean": prior[0], "prior_std": prior[1],
