@@ -201,3 +201,23 @@ def test_collision_transition_keeps_the_press_across_the_motion(pattern) -> None
     # across the motion: ~F_d (1 + k_fp) pressed down; along it: only K* x 0 + D* x v
     assert command((0.05, 0.0)) == pytest.approx(10.0 * (1 + c.force_kp), rel=0.05)
     assert abs(command((0.0, -0.05))) < 10.0
+
+
+def test_detected_contact_position_carries_the_stated_noise(pattern) -> None:
+    """Item 4 of issue #17: a detection measures the contact position with
+    ``detection_noise_std`` per axis, not exact kinematics; seeded, so reproducible."""
+    exact = make()
+    exact.prepare(pattern, CONTACT, np.random.default_rng(0))
+    p = np.array([0.01, 0.08])
+    assert np.array_equal(exact._measured(p), p)  # noqa: SLF001 - default: no noise
+    draws = []
+    for _ in range(2):
+        c = make(detection_noise_std=0.005)
+        c.prepare(pattern, CONTACT, np.random.default_rng(3))
+        draws.append(np.array([c._measured(p) for _ in range(2000)]))  # noqa: SLF001
+    assert np.array_equal(draws[0], draws[1])  # same seed, same measurements
+    err = draws[0] - p
+    assert np.all(np.abs(err.mean(axis=0)) < 0.0005)  # unbiased (5 sigma of the mean: 0.56 mm)
+    assert np.allclose(err.std(axis=0), 0.005, rtol=0.08)  # the stated 5 mm per axis
+    with pytest.raises(ConfigError, match="controller.anticipation.detection_noise_std"):
+        make(detection_noise_std=-1.0)

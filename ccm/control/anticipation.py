@@ -58,7 +58,7 @@ from ccm.types import Command, Observation, TargetSample
 _KEYS = (
     "sigma_scale", "min_region_radius_m", "blend_s", "k_collision", "path_dt",
     "init_noise_std", "init_std", "use_kinds", "stall_fraction", "stall_lookback_s",
-    "stall_travel_m",
+    "stall_travel_m", "detection_noise_std",
     "association_gate", "approach_cos_min", "force_along_cos", "map", "collisions",
 )  # fmt: skip
 
@@ -73,6 +73,8 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             ``blend_s`` (T of Eq. 10 and of the Eq. 11 rate changes [s]), ``k_collision``
             (K* of Eq. 8 before a collision [N/m]), ``path_dt`` (sampling of the plan for p_c [s]),
             ``init_noise_std`` / ``init_std`` (vision-noise and initial belief std [m]),
+            ``detection_noise_std`` (noise of a detected contact's measured position, per
+            axis [m]: :meth:`_measured`),
             ``use_kinds`` (which kinds of the task's contacts the robot is told about),
             ``stall_fraction`` / ``stall_lookback_s`` / ``stall_travel_m`` (the quasi-static
             contact rule of
@@ -110,6 +112,10 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             f"{key}.stall_lookback_s", a.get("stall_lookback_s", 0.05)
         )
         self.init_noise_std = a.get("init_noise_std", 0.06)
+        self.detection_noise_std = check_nonneg(
+            f"{key}.detection_noise_std", a.get("detection_noise_std", 0.0)
+        )
+        self._meas_rng: np.random.Generator | None = None
         self.init_std = a.get("init_std")
         kinds = a.get("use_kinds", ["collision", "impactless"])
         if isinstance(kinds, str) or not all(k in ("collision", "impactless") for k in kinds):
@@ -183,6 +189,7 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                 dim=pattern.dim, key=f"{self.ant_key}.map", **self._map_args,
             )  # fmt: skip
         self._pattern = pattern
+        self._meas_rng = rng  # this trial's detection noise (:meth:`_measured`)
         self._prior = [  # beliefs before this trial (report(): Table 1's "initial" column)
             (c.belief.mean.tolist(), float(np.sqrt(np.max(np.diag(c.belief.cov)))))
             for c in self.contact_map.contacts
@@ -299,13 +306,14 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         if event is not None and not self._approaching(event):
             event = None
         if event is not None and self.contact_map is not None:
+            z = self._measured(event.position)
             v_cmd = float(np.linalg.norm(self._commanded_velocity(event.onset_time)))
             measured = {"v_used": v_cmd, "f_measured": event.impact_force_N}
             if v_cmd < self.detector.min_approach_speed:
                 measured = {}  # the plan was not approaching: no Eq. 9 measurement
             ev = self.contact_map.observe(
-                event.position, "collision", **measured,
-                expected=self._in_sequence(event.position), expected_gate=self.order_gate,
+                z, "collision", **measured,
+                expected=self._in_sequence(z), expected_gate=self.order_gate,
             )  # fmt: skip
             hit = 1.0
             self._release(ev.index, obs.t)
@@ -314,12 +322,13 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             # below F_d, so the next approach is faster); weaker evidence than a collision,
             # so it must lie within the map's gate of the next contact
             gate = self.contact_map.gate
-            expected = self._in_sequence(obs.position, gate)
+            z = self._measured(obs.position)
+            expected = self._in_sequence(z, gate)
             if expected is None:
                 self._stall_used = True  # e.g. stick-slip short of the contact: not again
             else:
                 ev = self.contact_map.observe(
-                    obs.position, "collision", v_used=self._stall_speed,
+                    z, "collision", v_used=self._stall_speed,
                     f_measured=self._stall_peak, expected=expected, expected_gate=gate,
                 )  # fmt: skip
                 hit = 2.0
@@ -371,13 +380,25 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         if s["mode_event"] > 0 and self._trigger_pos is not None and self.contact_map is not None:
             if self._last_mode >= 0 and s["mode"] != self._last_mode:
                 ev = self.contact_map.observe(
-                    self._trigger_pos, "impactless",
+                    self._measured(self._trigger_pos), "impactless",
                     expected=self._expected(obs.t, "impactless"),
                 )  # fmt: skip
                 for w in self._windows:
                     if w.contact == ev.index and not w.done:
                         w.release, w.done = min(w.release, obs.t), True
         self._last_mode = s["mode"]
+
+    def _measured(self, position: np.ndarray) -> np.ndarray:
+        """The contact position the robot measures when it detects a contact (§3.3: the
+        end-effector position by forward kinematics, whose noise "depends on the joint encoder
+        noise and forward kinematics"): the tool position plus seeded Gaussian noise of
+        ``detection_noise_std`` per axis, drawn from this trial's generator. The simulator's
+        pose is exact, so without this draw the beliefs would converge to the sub-millimetre
+        errors of exact kinematics (issue #17 item 4)."""
+        z = np.array(position, dtype=float)
+        if self.detection_noise_std > 0.0 and self._meas_rng is not None:
+            z = z + self._meas_rng.normal(0.0, self.detection_noise_std, size=z.shape)
+        return z
 
     def _release(self, contact: int, t: float) -> None:
         """Contact made: leave the transition controller and return to the plan's speed."""
