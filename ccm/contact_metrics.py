@@ -2,8 +2,9 @@
 
 Inputs are the trial-log columns ``t``, ``segment``, ``vel_*`` (measured velocity),
 ``true_force_*`` (noise-free external force on the end-effector: ground truth, metrics only,
-never a controller) and, for the anticipation controller, ``transition_alpha`` (Eq. 10 blend
-weight) and ``collision_event`` (1: detected collision, 2: quasi-static contact). Parameters
+never a controller), optionally ``truth_normal_force_*`` (its normal part, for the onset)
+and, for the anticipation controller, ``transition_alpha`` (Eq. 10 blend weight) and
+``collision_event`` (1: detected collision, 2: quasi-static contact). Parameters
 come from ``cfg.metrics``: ``impact_onset_N``, ``impact_near_m``, ``impact_window_s``,
 ``impact_acc_window_s`` (two numbers [w0, w1]), ``lowpass_hz``, plus ``task_contacts``, which
 :func:`ccm.metrics.compute_extra_metrics` adds: the task's contacts in pattern order, each a
@@ -25,9 +26,15 @@ Definitions (one trial; step k is one control step, ``t[k]`` its time, dt the me
   nominal contact position, n_c pointing from the surface to the tool). Measuring from here,
   not from s_c, keeps friction that builds up as a slide starts (the table's, along a wall's
   normal) out of the onset.
-* **Onset** o_c: the first step k ≥ r_c in the search interval with f_c[k] − f_c[r_c] ≥
-  ``impact_onset_N``, i.e. the normal force has risen by that much over its level near the
-  surface; no onset if it never does.
+* **Onset** o_c: the first step k ≥ r_c in the search interval with g_c[k] − g_c[r_c] ≥
+  ``impact_onset_N``, i.e. the force along n_c has risen by that much over its level near the
+  surface; no onset if it never does. g_c = n_c · N_true[k] is the *normal part* of the true
+  contact force (``truth_normal_force_*``: the contact points' normal forces, friction left
+  out; PyBullet logs it) when the log has it, else f_c. With f_c the friction along n_c
+  counts: a tool that slows down and stiffens or softens within ``impact_near_m`` of the
+  surface changes it by more than ``impact_onset_N`` before any touch, and the onset was
+  missed (seed 1 of ``h4_contact_learning``: 13.4 N of sliding friction at the near step,
+  3.5 N later, 5.2 N at the touch).
 * ``contact_time_s_<name>`` = t[o_c] (None without an onset).
 * ``impact_force_N_<name>`` = max of f_c over the steps with t[o_c] ≤ t ≤ t[o_c] +
   ``impact_window_s``; ``peak_impact_force_N`` = the largest of these over the scored contacts.
@@ -119,8 +126,9 @@ def _onset(
     rise: float,
     near: float,
 ) -> int | None:
-    """Onset step of one contact (see the module docstring), or None. ``gap``: the tool
-    point's signed distance from the contact's surface plane per step."""
+    """Onset step of one contact (see the module docstring), or None. ``f_n``: the force
+    along the contact's normal per step (g_c); ``gap``: the tool point's signed distance from
+    the contact's surface plane per step."""
     starts = np.flatnonzero(seg == index)
     if starts.size == 0:
         return None
@@ -158,6 +166,11 @@ def contact_metrics(
     if contacts:
         seg = np.rint(np.asarray(log["segment"], dtype=float)).astype(int)
         f_true = np.column_stack([log[f"true_force_{a}"] for a in axes])
+        normal_cols = [f"truth_normal_force_{a}" for a in axes]
+        n_true = (
+            np.column_stack([log[k] for k in normal_cols])
+            if all(k in log for k in normal_cols) else f_true
+        )  # fmt: skip
         vel = np.column_stack([log[f"vel_{a}"] for a in axes])
         pos = np.column_stack([log[f"pos_{a}"] for a in axes])
         acc, _ = derivatives(vel, dt, lowpass_hz)
@@ -169,7 +182,7 @@ def contact_metrics(
             f_n = f_true @ n
             gap = (pos - np.asarray(c["position"], dtype=float)) @ n
             later = [j for j in indices[i + 1 :] if j > indices[i]]
-            o = _onset(f_n, gap, seg, indices[i], later, rise, near)
+            o = _onset(n_true @ n, gap, seg, indices[i], later, rise, near)
             force = acc_peak = t_on = None
             if o is not None:
                 t_on = float(t[o])

@@ -160,6 +160,47 @@ def test_quasi_static_contact_needs_a_stall_and_a_force_rise(pattern) -> None:
     assert fired[0] == pytest.approx(0.1 + 2 * c.detector.peak_window_s, abs=0.002)
 
 
+def _stall_run(c: AnticipatoryAVIC, breakaway_lag: float | None) -> list[float]:
+    """Slide along +y at 0.03 m/s against 3 N of friction with a 5 mm lag, stall at 0.1 s
+    while the target moves on (friction holding: the force stays at 3 N); with
+    ``breakaway_lag`` the tool slides again once its lag reaches it. Times the rule fired."""
+    c._windows = [TransitionWindow(0, "collision", 0.0, 0.0, 10.0)]  # noqa: SLF001
+    fired, y_stop, sliding = [], None, True
+    for k in range(600):
+        t = k * 0.001
+        y_target = 0.005 + 0.03 * t
+        if sliding and t >= 0.1 and y_stop is None:
+            y_stop, sliding = 0.03 * t, False
+        if not sliding and breakaway_lag is not None and y_target - y_stop >= breakaway_lag:
+            sliding = True
+        y = 0.03 * t if y_stop is None else (y_stop if not sliding else y_target - breakaway_lag)
+        target = TargetSample(t, np.array([0.0, y_target]), np.array([0.0, 0.03]), np.zeros(2),
+                              np.zeros(1))  # fmt: skip
+        o = obs_at(t, pos=(0.0, y), vel=(0.0, 0.03 if sliding else 0.0), force=(0.0, -3.0))
+        c._vel_hist.append((t, target.velocity))  # noqa: SLF001
+        c._force_hist.append((t, o.force.copy()))  # noqa: SLF001
+        if c._pressed(o, target):  # noqa: SLF001
+            fired.append(t)
+            c._release(0, t)  # noqa: SLF001
+    return fired
+
+
+def test_quasi_static_contact_from_the_lag_beyond_the_sliding_resistance(pattern) -> None:
+    """A stall with no force rise is a contact only once the pull K*·lag exceeds the
+    resistance the tool slid against by K*·stall_travel_m: lag >= 3 N / 300 N/m + 1 mm =
+    1.1 cm, reached 0.2 s after the stall (the lag grows from 5 mm at 0.03 m/s), not 3 mm of
+    target travel after it. A friction stall that breaks away at a 9.5 mm lag is no contact
+    (seed 5 of h4_contact_learning: such stalls were taken for the obstacle)."""
+    c = make(stall_travel_m=0.001)
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    assert c.k_collision == pytest.approx(300.0)
+    fired = _stall_run(c, breakaway_lag=None)
+    assert len(fired) == 1 and fired[0] == pytest.approx(0.3, abs=0.003)
+    c.reset(2, 0.001)
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    assert _stall_run(c, breakaway_lag=0.0095) == []
+
+
 def test_retimed_plan_with_overlapping_regions_is_smooth(pattern) -> None:
     """Wide, overlapping regions (trial 1) merge into one slow span: the re-timed target's
     rate, and so its velocity, acceleration and jerk (Eq. 11, Fig. 3), stay continuous at

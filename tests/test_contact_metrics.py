@@ -247,6 +247,25 @@ def test_onset_search_starts_near_the_surface() -> None:
     assert out["contact_time_s_table"] == pytest.approx(T_HIT)
 
 
+def test_onset_from_the_normal_part_when_logged() -> None:
+    """Friction along the normal that is high at the near step and falls before the touch
+    (a tool slowing down and softening within ``impact_near_m``) hides the onset in the true
+    force; its normal part (``truth_normal_force_*``) shows it, and the impact force is still
+    the true force along the normal."""
+    log = drop_log()
+    t = log["t"]
+    friction = np.where(t < 0.25, 13.0, 3.0) * (t < T_HIT - 1e-12)  # sliding resistance
+    log["true_force_z"] = log["true_force_z"] + friction
+    out = contact_metrics(log, 3, {**PARAMS, "task_contacts": [TABLE]})
+    assert out["contact_time_s_table"] is None  # the level at the near step was 13 N
+    zeros = np.zeros_like(t)
+    log.update(truth_normal_force_x=zeros, truth_normal_force_y=zeros,
+               truth_normal_force_z=np.where(t >= T_HIT - 1e-12, 5.0, 0.0))  # fmt: skip
+    out = contact_metrics(log, 3, {**PARAMS, "task_contacts": [TABLE]})
+    assert out["contact_time_s_table"] == pytest.approx(T_HIT)
+    assert out["impact_force_N_table"] == pytest.approx(8.0)
+
+
 def test_belief_metrics_from_the_controller_report() -> None:
     """contact_error_m / contact_std_m / approach velocity from the controller's report,
     matched by name against the task's nominal positions."""

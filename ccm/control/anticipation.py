@@ -69,7 +69,7 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
     Args:
         anticipation: ``sigma_scale`` (region C, Mahalanobis radius under the innovation
             covariance P + R: :mod:`ccm.control.contact_regions`), ``min_region_radius_m``
-            (floor on C's semi-axes [m], for the tool's lag behind its target),
+            (floor on C's semi-axes [m]; 0 = none),
             ``blend_s`` (T of Eq. 10 and of the Eq. 11 rate changes [s]), ``k_collision``
             (K* of Eq. 8 before a collision [N/m]), ``path_dt`` (sampling of the plan for p_c [s]),
             ``init_noise_std`` / ``init_std`` (vision-noise and initial belief std [m]),
@@ -158,6 +158,8 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         )
         self._force_hist: deque[tuple[float, np.ndarray]] = deque(maxlen=self._vel_hist.maxlen)
         self._stall_since, self._stall_used = math.inf, False
+        self._slide_resist = math.nan
+        self._resist_hist: deque[tuple[float, float]] = deque(maxlen=self._vel_hist.maxlen)
         self._signals.update(self._ant_signals(0.0, 0.0))
 
     def _force_along_motion(self, d: np.ndarray, target: TargetSample) -> bool:

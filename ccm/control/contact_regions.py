@@ -3,13 +3,14 @@
 Region C of a contact is the ellipsoid {x : (x − c)ᵀ S⁻¹ (x − c) <= s²} of the *innovation*
 covariance S = P + R: where the next detected contact is expected, the belief's own uncertainty
 P plus the detection noise R (the map's ``measurement_noise_std``). Along a straight approach
-through c its extent is s·σ_â, σ_â² = âᵀ S â, before and after c. A floor ``min_radius`` on its
-semi-axes (R counts toward it: :func:`region_mask`) is still needed, and not for detection
-noise: the tool trails its target (by ~1.2 cm at K* = 300 N/m with 3.5 N of friction along a
-wall), so with C at 3σ of P + R alone (≈ 1.6 cm once converged) the target slowed down so late
-that the tool stopped 2 cm short of h4_contact_learning's obstacle, the stall rule declared the
-contact there, and the plan's speed came back for a 60 N impact (seed 0, trial 2, measured).
-``experiments/h4.md`` keeps this open (issue #17, item 2).
+through c its extent is s·σ_â, σ_â² = âᵀ S â, before and after c. An optional floor
+``min_radius`` on its semi-axes (R counts toward it: :func:`region_mask`) is off in the H4
+experiments (issue #17 item 2). It once stood in for the tool's lag behind its target: with C at
+3σ of P + R alone (≈ 1.6 cm once converged) the tool, whose lag grows from ~5 mm to ~1.1 cm as
+the stiffness falls to K*, stalled by friction after the slow-down, and the old stall test took
+that for the contact 2 cm short of h4_contact_learning's obstacle (60 N when the plan's speed
+came back; seed 0, trial 2). The stall test now asks for a lag beyond the sliding resistance
+(:meth:`ccm.control.contact_events.ContactEvents._pressed`).
 
 A *pass* is a maximal run of plan samples inside C, from where the path enters C to where it
 leaves it. A path may enter C several times (a wide early belief covers earlier stretches of

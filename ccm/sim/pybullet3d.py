@@ -79,6 +79,7 @@ from ccm.sim.pybullet_scene import (
     TableSpec,
     ToolSpec,
     boxed_table_parts,
+    contact_normal_force,
     contact_split,
 )
 from ccm.sim.sensor import FTSensor
@@ -448,13 +449,14 @@ class PyBullet3D(Simulator):
 
     def _contacts(self) -> tuple[np.ndarray, np.ndarray, int, float, np.ndarray]:
         """Ground-truth contact force/torque (about the tool point), count, friction and
-        ``(table normal, box normal, box friction)`` [N] (:func:`contact_split`)."""
+        ``(table normal, box normal, box friction, normal force x, y, z)`` [N]
+        (:func:`contact_split`, :func:`contact_normal_force`)."""
         p, cid = self._p, self._client
         pts = p.getContactPoints(bodyA=self._robot, linkIndexA=self._tool_link, physicsClientId=cid)
         if not pts:
-            return np.zeros(3), np.zeros(3), 0, -1.0, np.zeros(3)
+            return np.zeros(3), np.zeros(3), 0, -1.0, np.zeros(6)
         tip = self._tip[0]
-        split = np.array(contact_split(pts, self._box_bodies))
+        split = np.array(contact_split(pts, self._box_bodies) + contact_normal_force(pts))
         return (*contact_wrench(pts, tip, self._body_friction), split)
 
     def _output(
@@ -496,6 +498,10 @@ class PyBullet3D(Simulator):
                 "table_normal_N": float(split[0]),  # normal force from the table [N]
                 "box_normal_N": float(split[1]),  # ... from scene.boxes (walls) [N]
                 "box_friction_N": float(split[2]),  # |friction force| from the boxes [N]
+                # the normal part of the contact force (friction left out) [N]
+                "normal_force_x": float(split[3]),
+                "normal_force_y": float(split[4]),
+                "normal_force_z": float(split[5]),
             },
         )
         return obs, info

@@ -398,3 +398,17 @@ def contact_split(
         else:
             table_n += c[9]
     return table_n, box_n, math.sqrt(fx * fx + fy * fy + fz * fz)
+
+
+def contact_normal_force(pts: Sequence[Sequence[Any]]) -> tuple[float, float, float]:
+    """The normal part of the contact force on the tool, summed over points [N] (friction
+    left out): entry 9 (normal force) times entry 7 (the contact normal on body B, pointing
+    from the surface to the tool). Ground truth for the H4 onset of a contact (the first
+    push of a surface facing the contact's normal, :mod:`ccm.contact_metrics`)."""
+    fx = fy = fz = 0.0
+    for c in pts:
+        nx, ny, nz = c[7]
+        fx += c[9] * nx
+        fy += c[9] * ny
+        fz += c[9] * nz
+    return fx, fy, fz
