@@ -108,12 +108,17 @@ def plain(node: Any) -> Any:
 
 
 def resolve_conditions(cfg: DictConfig, compose: ComposeFn) -> list[Condition]:
-    """Expand ``experiment.conditions`` into composed configs (or the run config alone)."""
-    spec = cfg.experiment.get("conditions") or {}
+    """Expand ``experiment.conditions`` into composed configs (or the run config alone).
+
+    A condition set to null is left out: an experiment built on another (its defaults list)
+    drops an inherited condition so."""
+    spec = {
+        k: v for k, v in (plain(cfg.experiment.get("conditions")) or {}).items() if v is not None
+    }
     if not spec:
         return [Condition(name=str(cfg.controller.get("type", "default")), cfg=cfg, overrides=[])]
     out = []
-    for name, overrides in plain(spec).items():
+    for name, overrides in spec.items():
         key = f"experiment.conditions.{name}"
         if not _NAME_RE.match(str(name)):
             raise ConfigError(key, "condition names may use letters, digits, '_', '-', '.'")
@@ -256,6 +261,7 @@ def run_trial(
     *,
     max_extension_s: float = math.inf,
     on_step: Callable[[Simulator], None] | None = None,
+    expect: Callable[[int], None] | None = None,
 ) -> TrialRecorder:
     """Run one trial: sample P, control, step the simulator, record. Raises on divergence.
 
@@ -265,7 +271,9 @@ def run_trial(
     ``max_extension_s`` (0 = never longer). The recorder's ``pattern_duration`` is the
     pattern's final duration (for the completion time). ``on_step(sim)``, if given, is called
     once per control step right after the step is recorded (before the simulator steps), e.g.
-    to log the joint encoders an offline learner needs (:mod:`ccm.h3_data`).
+    to log the joint encoders an offline learner needs (:mod:`ccm.h3_data`). ``expect(n)``, if
+    given, gets the trial's step count once the controller has re-timed the pattern (a
+    progress bar's estimate).
     """
     obs, info = comp.sim.reset(seed=seed)
     comp.controller.reset(comp.task.dim, comp.sim.control_dt)
@@ -276,6 +284,9 @@ def run_trial(
     def n_steps() -> int:
         extra = min(max(pattern.duration - planned.duration, 0.0), max_extension_s)
         return max(1, int(math.floor((duration_s + extra) / dt + 1e-9)))
+
+    if expect is not None:
+        expect(n_steps())
 
     # The loop allocates many small acyclic objects that the recorder keeps; the cyclic
     # garbage collector would rescan them ever more often, so it is paused for the trial.
@@ -388,6 +399,7 @@ def run_experiment(
                     rec = run_trial(
                         comp, seed, duration(comp), bar.advance if bar else None,
                         max_extension_s=extension,
+                        expect=bar.trial_steps if bar else None,
                     )  # fmt: skip
                     if bar is not None:  # a re-timed trial: expect the phase's next ones alike
                         later = n_trials(ph) - i - 1
@@ -502,6 +514,10 @@ def _progress_bar(total: int, desc: str, show: bool) -> Any:
             if self.total is not None and self.n + n + self.reserve > self.total:
                 self.total = self.n + n + self.reserve
             self.update(n)
+
+        def trial_steps(self, n: int) -> None:
+            """A trial of ``n`` steps (re-timed) starts: expect it and ``reserve`` more."""
+            self.expect(self.n + n + self.reserve)
 
         def expect(self, total: int) -> None:
             """Set the expected total steps (after a trial: what is left, re-estimated); shown

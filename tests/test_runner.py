@@ -10,7 +10,13 @@ import pytest
 
 from ccm.errors import ConfigError
 from ccm.metrics import check_extra_metrics
-from ccm.runner import check_experiment, plan_experiment, run_experiment, trial_seed
+from ccm.runner import (
+    check_experiment,
+    plan_experiment,
+    resolve_conditions,
+    run_experiment,
+    trial_seed,
+)
 
 PHASES = (
     "experiment.phases=[{name: train, trials: 2,"
@@ -67,6 +73,17 @@ def test_a_condition_may_set_its_own_trial_count(composer, tmp_path: Path) -> No
     bad = [*overrides[:-1], "experiment.conditions.fixed_high=['experiment.trials=0']"]
     with pytest.raises(ConfigError, match="experiment.trials"):
         plan_experiment(composer(bad), lambda extra: composer([*bad, *extra]), 3)
+
+
+def test_a_null_condition_is_left_out(composer) -> None:
+    """An experiment built on another drops an inherited condition by setting it to null."""
+    overrides = ["experiment=smoke", "experiment.conditions.fixed_high=null"]
+    cfg = composer(overrides)
+    assert "fixed_high" in cfg.experiment.conditions
+    names = [c.name for c in resolve_conditions(cfg, lambda extra: composer([*overrides, *extra]))]
+    assert names == [
+        n for n in composer(["experiment=smoke"]).experiment.conditions if n != "fixed_high"
+    ]
 
 
 @pytest.mark.parametrize(
@@ -133,5 +150,7 @@ def test_progress_bar_expect_and_advance_never_pass_100_percent() -> None:
         bar.reserve = 50  # steps planned for later trials stay ahead of an overrunning one
         bar.advance(20)
         assert (bar.n, bar.total) == (110, 160)
+        bar.trial_steps(400)  # a trial re-timed at its start to 400 steps, 50 after it
+        assert bar.total == 110 + 400 + 50
     finally:
         bar.close()
