@@ -201,6 +201,34 @@ def test_quasi_static_contact_from_the_lag_beyond_the_sliding_resistance(pattern
     assert _stall_run(c, breakaway_lag=0.0095) == []
 
 
+def test_a_stall_ends_when_the_plan_turns(pattern) -> None:
+    """A stall at a wall that ended in a contact does not outlast the plan's turn: the slide
+    along the wall (+x after a stall along +y) stalls anew at the next contact and fires,
+    while the windows of both contacts stay open (trial 1's overlapping regions)."""
+    c = make(stall_travel_m=0.001)
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    c._windows = [TransitionWindow(i, "collision", 0.0, 0.0, 10.0) for i in (0, 1)]  # noqa: SLF001
+    fired, wall_y, stop_x = [], 0.0, 0.03 * 0.4
+    for k in range(1400):
+        t = k * 0.001
+        if t < 0.5:  # into the wall along +y: stalls at t = 0 at once, lag grows
+            tp, tv, pos, vel = (0.0, 0.005 + 0.03 * t), (0.0, 0.03), (0.0, wall_y), (0.0, 0.0)
+        else:  # along the wall (+x) with 3 N of friction, 5 mm behind, into a stop at stop_x
+            x_t = 0.005 + 0.03 * (t - 0.5)
+            x = min(x_t - 0.005, stop_x)
+            tp, tv = (x_t, 0.0), (0.03, 0.0)
+            pos, vel = (x, wall_y), (0.0 if x >= stop_x else 0.03, 0.0)
+        target = TargetSample(t, np.array(tp), np.array(tv), np.zeros(2), np.zeros(1))
+        force = (-3.0, 0.0) if t >= 0.5 else (0.0, -3.0)
+        o = obs_at(t, pos=pos, vel=vel, force=force)
+        c._vel_hist.append((t, target.velocity))  # noqa: SLF001
+        c._force_hist.append((t, o.force.copy()))  # noqa: SLF001
+        if c._pressed(o, target):  # noqa: SLF001
+            fired.append(t)
+            c._release(len(fired) - 1, t)  # noqa: SLF001
+    assert len(fired) == 2 and fired[0] < 0.5 < fired[1]
+
+
 def test_retimed_plan_with_overlapping_regions_is_smooth(pattern) -> None:
     """Wide, overlapping regions (trial 1) merge into one slow span: the re-timed target's
     rate, and so its velocity, acceleration and jerk (Eq. 11, Fig. 3), stay continuous at

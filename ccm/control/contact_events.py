@@ -72,7 +72,11 @@ class ContactEvents:
         """Whether a collision was made *quasi-statically* in an open window, past p_c.
 
         A stall begins when the tool's speed along the commanded motion u falls below
-        ``stall_fraction`` of the commanded speed; it ends when the tool moves on along u.
+        ``stall_fraction`` of the commanded speed; it ends when the tool moves on along u, or
+        when the plan moves on in another direction (cos < ``approach_cos_min`` with u: a
+        stall at a wall that ended in a contact would otherwise last through the slide along
+        it and block the next contact's test, as it did in trial 1 of h4_collisions, whose
+        regions overlap, on 7 of 20 seeds).
         After twice the detector's peak window (a collision the detector will report is left
         to it) the contact is declared if, since the stall began, either the force against u
         has risen by the detector's jump threshold (over its level ``stall_lookback_s``
@@ -116,7 +120,11 @@ class ContactEvents:
             return False
         u = self._stall_u
         floor = max(speed, self.detector.min_approach_speed)
-        if float(obs.lin_vel @ u) > self.stall_fraction * floor:  # the tool moves on
+        turned = (
+            speed >= self.detector.min_approach_speed
+            and float(target.velocity @ u) < self.approach_cos_min * speed
+        )  # the plan moves on in another direction
+        if turned or float(obs.lin_vel @ u) > self.stall_fraction * floor:  # or the tool does
             self._stall_since, self._stall_used = math.inf, False
             return False
         self._stall_peak = max(self._stall_peak, -float(obs.force @ u))
