@@ -208,11 +208,13 @@ def test_a_stall_ends_when_the_plan_turns(pattern) -> None:
     c = make(stall_travel_m=0.001)
     c.prepare(pattern, CONTACT, np.random.default_rng(0))
     c._windows = [TransitionWindow(i, "collision", 0.0, 0.0, 10.0) for i in (0, 1)]  # noqa: SLF001
-    fired, wall_y, stop_x = [], 0.0, 0.03 * 0.4
+    fired, wall_y, stop_x = [], 0.003, 0.03 * 0.4
     for k in range(1400):
         t = k * 0.001
-        if t < 0.5:  # into the wall along +y: stalls at t = 0 at once, lag grows
-            tp, tv, pos, vel = (0.0, 0.005 + 0.03 * t), (0.0, 0.03), (0.0, wall_y), (0.0, 0.0)
+        if t < 0.5:  # into the wall along +y, 5 mm behind the target: stalls at 0.1 s
+            y = min(0.03 * t, wall_y)
+            tp, tv = (0.0, 0.005 + 0.03 * t), (0.0, 0.03)
+            pos, vel = (0.0, y), (0.0, 0.0 if y >= wall_y else 0.03)
         else:  # along the wall (+x) with 3 N of friction, 5 mm behind, into a stop at stop_x
             x_t = 0.005 + 0.03 * (t - 0.5)
             x = min(x_t - 0.005, stop_x)
@@ -227,6 +229,26 @@ def test_a_stall_ends_when_the_plan_turns(pattern) -> None:
             fired.append(t)
             c._release(len(fired) - 1, t)  # noqa: SLF001
     assert len(fired) == 2 and fired[0] < 0.5 < fired[1]
+
+
+def test_starting_from_rest_is_no_stall(pattern) -> None:
+    """A tool held by static friction while its target pulls away from rest (the start of a
+    slide along a wall) has never slid along the motion: no stall, however far the lag grows
+    before it breaks away (seed 53 of h4_collisions: such a start, measured against the
+    resistance of the previous direction, was taken for the next contact)."""
+    c = make(stall_travel_m=0.001)
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    c._windows = [TransitionWindow(0, "collision", 0.0, 0.0, 10.0)]  # noqa: SLF001
+    for k in range(600):
+        t = k * 0.001
+        lag = 0.03 * t
+        y = max(0.0, lag - 0.012)  # breaks away at a 1.2 cm lag (3.6 N at 300 N/m)
+        target = TargetSample(t, np.array([0.0, 0.03 * t]), np.array([0.0, 0.03]),
+                              np.zeros(2), np.zeros(1))  # fmt: skip
+        o = obs_at(t, pos=(0.0, y), vel=(0.0, 0.03 if y > 0 else 0.0), force=(0.0, -3.0))
+        c._vel_hist.append((t, target.velocity))  # noqa: SLF001
+        c._force_hist.append((t, o.force.copy()))  # noqa: SLF001
+        assert not c._pressed(o, target)  # noqa: SLF001
 
 
 def test_retimed_plan_with_overlapping_regions_is_smooth(pattern) -> None:

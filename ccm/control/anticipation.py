@@ -157,9 +157,8 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             maxlen=max(2, round(keep / control_dt))
         )
         self._force_hist: deque[tuple[float, np.ndarray]] = deque(maxlen=self._vel_hist.maxlen)
-        self._stall_since, self._stall_used = math.inf, False
-        self._slide_resist = math.nan
         self._resist_hist: deque[tuple[float, float]] = deque(maxlen=self._vel_hist.maxlen)
+        self._new_direction(None)  # the stall and sliding-resistance state (ContactEvents)
         self._signals.update(self._ant_signals(0.0, 0.0))
 
     def _force_along_motion(self, d: np.ndarray, target: TargetSample) -> bool:

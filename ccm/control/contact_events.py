@@ -61,6 +61,7 @@ class ContactEvents:
     control_dt: float
     _stall_u: np.ndarray
     _slide_resist: float
+    _slide_u: np.ndarray | None
     _resist_hist: deque[tuple[float, float]]
     _stall_speed: float
     _stall_peak: float
@@ -102,29 +103,27 @@ class ContactEvents:
         its Eq. 9 measurement: an impact too small to detect.
         """
         active = any(w.kind == "collision" and not w.done and obs.t >= w.t1 for w in self._windows)
-        if not active:
-            self._stall_since, self._stall_used = math.inf, False
-            self._slide_resist = math.nan
-            self._resist_hist.clear()
-            return False
         speed = math.sqrt(float(target.velocity @ target.velocity))
+        moving = speed >= self.detector.min_approach_speed
+        if not active or (moving and self._turned(target.velocity / speed)):
+            self._new_direction(target.velocity / speed if active else None)
+        if not active:
+            return False
         if self._stall_since == math.inf:
-            if speed < self.detector.min_approach_speed:
+            if not moving:
                 return False  # not approaching anything
             u = target.velocity / speed
             if float(obs.lin_vel @ u) > self.stall_fraction * speed:  # sliding along u
                 self._track_resistance(obs.t, max(0.0, -float(obs.force @ u)))
                 return False
+            if math.isnan(self._slide_resist):
+                return False  # never slid along u: starting from rest is no stall
             self._stall_since, self._stall_u, self._stall_speed = obs.t, u, speed
             self._stall_peak = -float(obs.force @ u)
             return False
         u = self._stall_u
         floor = max(speed, self.detector.min_approach_speed)
-        turned = (
-            speed >= self.detector.min_approach_speed
-            and float(target.velocity @ u) < self.approach_cos_min * speed
-        )  # the plan moves on in another direction
-        if turned or float(obs.lin_vel @ u) > self.stall_fraction * floor:  # or the tool does
+        if float(obs.lin_vel @ u) > self.stall_fraction * floor:  # the tool moves on
             self._stall_since, self._stall_used = math.inf, False
             return False
         self._stall_peak = max(self._stall_peak, -float(obs.force @ u))
@@ -134,15 +133,26 @@ class ContactEvents:
         before = self._history(self._force_hist, t_ref)
         rise = -float((obs.force - before) @ u)
         # the resistance while sliding, stall_lookback_s before the stall (the last samples
-        # before it hold the contact's own force rise); the level then if it never slid here
-        resist = max(0.0, -float(before @ u))
-        if self._resist_hist:
-            resist = float(self._history(self._resist_hist, t_ref))
+        # before it hold the contact's own force rise)
+        resist = float(self._history(self._resist_hist, t_ref))
         lag = float((target.position - obs.position) @ u)
         return (
             rise >= self.detector.jump_threshold_N
             or lag >= resist / self.k_collision + self.stall_travel_m
         )
+
+    def _turned(self, u: np.ndarray) -> bool:
+        """Whether the plan now moves in another direction than the one the sliding
+        resistance was measured along (cos < ``approach_cos_min``)."""
+        return self._slide_u is None or float(u @ self._slide_u) < self.approach_cos_min
+
+    def _new_direction(self, u: np.ndarray | None) -> None:
+        """The plan turned (or no collision window is open): the sliding resistance is
+        measured afresh along u, and a stall along the old direction is over."""
+        self._slide_u = u
+        self._slide_resist = math.nan
+        self._resist_hist.clear()
+        self._stall_since, self._stall_used = math.inf, False
 
     def _track_resistance(self, t: float, force: float) -> None:
         """Average the force against the motion while the tool slides along it over
