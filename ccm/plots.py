@@ -159,6 +159,7 @@ def write_figures(
             xs, ys = zip(*pts, strict=True)
             ax.plot(xs, 1000.0 * np.asarray(ys), "o-", ms=3, label=name)
         ax.set_xlabel("trial")
+        ax.xaxis.get_major_locator().set_params(integer=True)  # no ticks between trials
         ax.set_ylabel("RMS tracking error [mm]")
         ax.set_yscale("log")
         ax.set_title("Tracking error over repeated trials")

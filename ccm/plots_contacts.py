@@ -92,7 +92,7 @@ def _figure(chosen: list[tuple[str, Log]], dim: int, lowpass_hz: float, title: s
     axs[0, 0].set_ylabel("speed ‖v‖ [m/s]")
     axs[1, 0].set_ylabel("acceleration ‖a‖ [m/s²]")
     axs[2, 0].set_ylabel("true force ‖F‖ [N]")
-    fig.suptitle(title)
+    fig.suptitle(title, fontsize=10)
     return fig
 
 
@@ -115,12 +115,12 @@ def write_contact_figures(
     sub = f"low-pass {lowpass_hz:g} Hz; shaded: transition phase; dashed: detected contacts"
     first = [(_trial_label(n, trials, 0), r[0]) for n, r in runs.items()]
     save(
-        _figure(first, dim, lowpass_hz, f"Contact transitions, first trial ({sub})"),
+        _figure(first, dim, lowpass_hz, f"Contact transitions, first trial\n({sub})"),
         "contact_transitions.png",
     )
     if any(len(r) > 1 for r in runs.values()):
         last = [(_trial_label(n, trials, -1), r[-1]) for n, r in runs.items()]
         save(
-            _figure(last, dim, lowpass_hz, f"Contact transitions, latest trial ({sub})"),
+            _figure(last, dim, lowpass_hz, f"Contact transitions, latest trial\n({sub})"),
             "contact_transitions_last.png",
         )
