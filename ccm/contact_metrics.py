@@ -77,6 +77,18 @@ Impact-less transitions (seed A §4.5.2, Figs 19-20), for every task contact of 
 * ``region_m_<name>`` = ``region_m`` (largest semi-axis of region C) of the controller's
   impact-less belief nearest to that position, if one lies within ``patch_window_m`` (the
   region it anticipates there), else None: the region size per trial of Fig. 20.
+* **Switch onset** (ground truth): in the first contiguous run of the patch window, the
+  first step at which ``truth_table_friction`` (the friction the simulator gives the table)
+  differs from its value at the run's first step: where the tool's face starts to feel the
+  new surface (with ``sim.patch_mode: footprint`` about half the tool's width before the tool
+  point crosses). Without that column: the step of the run closest to the position.
+  ``switch_onset_s_<name>`` = its time.
+* ``switch_detect_delay_s_<name>`` = from the onset to the first step of the run at which
+  Algorithm 1 decides a mode (``mode_event`` > 0) other than the ``mode`` at the onset (seed A:
+  "detected"); ``switch_detected_<name>`` = 1.0. With no such decision before the tool leaves
+  the window the delay is censored at the window's end (a lower bound on the true delay) and
+  ``switch_detected_<name>`` = 0.0. All three are None without a run with an onset, and the
+  last two None for a controller without mode detection (no ``mode`` column).
 
 Every value is a plain float or None, and the keys are the same every trial of a task (a
 missing onset gives None, not a missing key). ``completion_time_s``, ``peak_acc_mps2`` and
@@ -310,4 +322,38 @@ def _patch_metrics(
         k = int(np.argmin(dist)) if dist else -1
         ok = k >= 0 and dist[k] <= near
         out[f"region_m_{name}"] = float(beliefs[k]["region_m"]) if ok else None
+        gap = np.linalg.norm(pos - p, axis=1)
+        onset, delay, found = _switch_detection(log, t, inside, gap)
+        out[f"switch_onset_s_{name}"] = onset
+        out[f"switch_detect_delay_s_{name}"] = delay
+        out[f"switch_detected_{name}"] = found
     return out
+
+
+def _switch_detection(
+    log: Mapping[str, np.ndarray], t: np.ndarray, inside: np.ndarray, gap: np.ndarray
+) -> tuple[float | None, float | None, float | None]:
+    """(onset time, detection delay, detected) of one surface switch (module docstring);
+    ``inside``: the patch window per step, ``gap``: the tool point's distance from the switch
+    position."""
+    steps = np.flatnonzero(inside)
+    if steps.size == 0:
+        return None, None, None
+    ends = np.flatnonzero(np.diff(steps) > 1)
+    run = steps[: int(ends[0]) + 1] if ends.size else steps  # the first contiguous run
+    mu = log.get("truth_table_friction")
+    if mu is None:
+        o = int(run[np.argmin(gap[run])])
+    else:
+        changed = np.flatnonzero(np.abs(np.asarray(mu)[run] - float(mu[run[0]])) > 1e-9)
+        if changed.size == 0:
+            return None, None, None
+        o = int(run[changed[0]])
+    mode, event = log.get("mode"), log.get("mode_event")
+    if mode is None or event is None:
+        return float(t[o]), None, None
+    after = run[run >= o]
+    hit = after[(np.asarray(event)[after] > 0) & (np.asarray(mode)[after] != mode[o])]
+    if hit.size:
+        return float(t[o]), float(t[hit[0]] - t[o]), 1.0
+    return float(t[o]), float(t[after[-1]] - t[o]), 0.0

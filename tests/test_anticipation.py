@@ -312,3 +312,36 @@ def test_detected_contact_position_carries_the_stated_noise(pattern) -> None:
     assert np.allclose(err.std(axis=0), 0.005, rtol=0.08)  # the stated 5 mm per axis
     with pytest.raises(ConfigError, match="controller.anticipation.detection_noise_std"):
         make(detection_noise_std=-1.0)
+
+
+def test_transition_controllers_add_the_base_feedforward_when_configured(
+    pattern, monkeypatch
+) -> None:
+    """Eq. 8's u_ff (issue #17 item 5): a transition controller listed in
+    ``transition_feedforward`` subtracts the base's λ Ŵ of this step, as Eq. 4a does; the
+    others do not. With the weight at 1 the command differs by exactly u_ff."""
+    from ccm.control.avic import AVIC
+    from ccm.types import Command
+
+    ff = np.array([1.5, -0.5])
+
+    def base_step(self, obs, target):  # the base's Eq. 4a with a known feed-forward
+        self.last_feedforward, self.last_force_loop = ff, np.zeros(2)
+        return Command(force=np.zeros(2), torque=np.zeros(1))
+
+    monkeypatch.setattr(AVIC, "step", base_step)
+    tgt = TargetSample(0.0, np.zeros(2), np.array([0.05, 0.0]), np.zeros(2), np.zeros(1))
+
+    def command(kind: str, keep: list[str]) -> np.ndarray:
+        c = make(transition_feedforward=keep)
+        c.prepare(pattern, CONTACT, np.random.default_rng(0))
+        c._windows = [TransitionWindow(0, kind, 0.0, 0.0, 10.0)]  # noqa: SLF001 - alpha = 1
+        return c.step(obs_at(0.0), tgt).force
+
+    for kind in ("collision", "impactless"):
+        without = command(kind, [])
+        np.testing.assert_allclose(command(kind, [kind]), without - ff, atol=1e-12)
+        other = "impactless" if kind == "collision" else "collision"
+        np.testing.assert_allclose(command(kind, [other]), without, atol=1e-12)
+    with pytest.raises(ConfigError, match="controller.anticipation.transition_feedforward"):
+        make(transition_feedforward=True)

@@ -323,3 +323,46 @@ def test_patch_metrics_look_near_the_surface_boundary() -> None:
     assert out["patch_peak_acc_mps2_b"] < acc.max()  # the far jolt is left out
     assert out["region_m_b"] == pytest.approx(0.03)
     assert contact_metrics(log, 3, params)["region_m_b"] is None  # no beliefs: no region
+
+
+def switch_log(detect_at: float | None, ramp: bool = True) -> dict[str, np.ndarray]:
+    """The tool slides at 0.1 m/s along +x across a switch at x = 0.45 (t = 0.5 s). The table
+    friction ramps 0.2 -> 0.4 from t = 0.3 s (``ramp``; else it steps at 0.5 s); Algorithm 1
+    decides mode 1 (was 0) at ``detect_at`` (None: never)."""
+    n = 1000
+    t = np.arange(n) * DT
+    zeros = np.zeros(n)
+    start = 0.3 if ramp else 0.5
+    mu = 0.2 + 0.2 * np.clip((t - start) / 0.4, 0.0, 1.0) if ramp else np.where(t >= 0.5, 0.4, 0.2)
+    mode, event = zeros.copy(), zeros.copy()
+    if detect_at is not None:
+        k = int(round(detect_at / DT))
+        mode[k:], event[k] = 1.0, 2.0
+    event[100] = 1.0  # a decision for the same mode far before the window: not a detection
+    return {"t": t, "segment": zeros, "pos_x": 0.4 + 0.1 * t, "pos_y": zeros, "pos_z": zeros,
+            "vel_x": np.full(n, 0.1), "vel_y": zeros, "vel_z": zeros, "true_force_x": zeros,
+            "true_force_y": zeros, "true_force_z": zeros, "truth_table_friction": mu,
+            "mode": mode, "mode_event": event}  # fmt: skip
+
+
+def test_switch_detection_delay_runs_from_the_friction_onset_to_the_mode_change() -> None:
+    """Onset = first change of the table friction in the patch window (0.3 s with the ramp,
+    the tool point still 2 cm short); delay to Algorithm 1's mode change; censored at the
+    window's end (t = 0.8 s, 3 cm past) when nothing is decided there."""
+    patch = {"name": "b", "kind": "impactless", "position": (0.45, 0.0, 0.0)}
+    params = {**PARAMS, "patch_window_m": 0.03, "task_contacts": [patch]}
+    out = contact_metrics(switch_log(0.62), 3, params)
+    assert out["switch_onset_s_b"] == pytest.approx(0.301, abs=1.5e-3)
+    assert out["switch_detect_delay_s_b"] == pytest.approx(0.62 - 0.301, abs=1.5e-3)
+    assert out["switch_detected_b"] == 1.0
+    step = contact_metrics(switch_log(0.62, ramp=False), 3, params)
+    assert step["switch_onset_s_b"] == pytest.approx(0.5, abs=1.5e-3)
+    assert step["switch_detect_delay_s_b"] == pytest.approx(0.12, abs=1.5e-3)
+    missed = contact_metrics(switch_log(None), 3, params)
+    assert missed["switch_detected_b"] == 0.0
+    assert missed["switch_detect_delay_s_b"] == pytest.approx(0.8 - 0.301, abs=1.5e-3)
+    late = contact_metrics(switch_log(0.9), 3, params)  # after the window: not this switch's
+    assert late["switch_detected_b"] == 0.0
+    no_modes = {k: v for k, v in switch_log(0.62).items() if k not in ("mode", "mode_event")}
+    out = contact_metrics(no_modes, 3, params)
+    assert out["switch_onset_s_b"] is not None and out["switch_detect_delay_s_b"] is None

@@ -20,7 +20,8 @@ On top of :class:`ccm.control.modal.ModalAVIC` (Eq. 4a–4c, Algorithm 1):
   collision K* = ``k_collision``, with the base's force loop kept across the motion (the
   10 N press while sliding into a wall) but not along it (there the re-timed target, not a
   force loop, must set the approach speed); around an expected impact-less transition
-  K* = K_max with the base's force loop. The collision weight takes
+  K* = K_max with the base's force loop; Eq. 8's u_ff (the base's λ Ŵ) only for the kinds
+  in ``transition_feedforward`` (:mod:`ccm.control.transition`). The collision weight takes
   precedence; the weights rise linearly to 1 by p_c and fall back over ``blend_s`` once the
   contact is made.
 * **Events** (§3.3, :mod:`ccm.control.contact_events`): collisions from
@@ -47,8 +48,9 @@ import numpy as np
 from ccm.control.avic import _OWN_KEYS as _AVIC_KEYS
 from ccm.control.contact_events import ContactEvents, TransitionWindow
 from ccm.control.contact_regions import approach_passes, in_plan_order, speed_pieces, to_segment_end
-from ccm.control.impedance import FixedImpedance, impedance_term
+from ccm.control.impedance import FixedImpedance
 from ccm.control.modal import ModalAVIC
+from ccm.control.transition import KINDS, check_kinds, transition_force
 from ccm.errors import ConfigError, check_keys, check_nonneg, check_positive, constructor_kwargs
 from ccm.learn.collisions import CollisionDetector
 from ccm.learn.contacts import ContactMap
@@ -58,7 +60,7 @@ from ccm.types import Command, Observation, TargetSample
 _KEYS = (
     "sigma_scale", "min_region_radius_m", "blend_s", "k_collision", "path_dt",
     "init_noise_std", "init_std", "use_kinds", "stall_fraction", "stall_lookback_s",
-    "stall_travel_m", "detection_noise_std",
+    "stall_travel_m", "detection_noise_std", "transition_feedforward",
     "association_gate", "approach_cos_min", "force_along_cos", "map", "collisions",
 )  # fmt: skip
 
@@ -80,7 +82,8 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             contact rule of
             :meth:`_pressed`), ``association_gate`` (:meth:`_in_sequence`, in σ),
             ``approach_cos_min`` (:meth:`_approaching`), ``force_along_cos``
-            (:meth:`_force_along_motion`),
+            (:meth:`_force_along_motion`), ``transition_feedforward`` (the kinds of
+            transition controller that keep Eq. 8's u_ff: :mod:`ccm.control.transition`),
             ``map`` (:class:`ContactMap` arguments) and ``collisions``
             (:class:`CollisionDetector` arguments).
         **modal: the :class:`ModalAVIC` arguments.
@@ -116,11 +119,14 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             f"{key}.detection_noise_std", a.get("detection_noise_std", 0.0)
         )
         self._meas_rng: np.random.Generator | None = None
+        self.transition_ff = check_kinds(
+            f"{key}.transition_feedforward",
+            a.get("transition_feedforward", []),
+        )
         self.init_std = a.get("init_std")
-        kinds = a.get("use_kinds", ["collision", "impactless"])
-        if isinstance(kinds, str) or not all(k in ("collision", "impactless") for k in kinds):
-            raise ConfigError(f"{key}.use_kinds", "must be a list of: collision, impactless")
-        self.use_kinds = tuple(kinds)
+        self.use_kinds = check_kinds(
+            f"{key}.use_kinds", a.get("use_kinds", ["collision", "impactless"])
+        )
         self._map_args = dict(a.get("map") or {})
         self.detector = CollisionDetector(
             **dict(a.get("collisions") or {}), key=f"{key}.collisions"
@@ -348,24 +354,21 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         if alpha > 0.0:
             k1 = self._signals["stiffness_Npm"]
             force = (1.0 - alpha) * cmd.force
-            if a_c > 0.0:
-                u = impedance_term(
-                    obs, target, self.k_collision, self.damping_for(self.k_collision),
-                    self.mass_kg, self.inertia_feedforward,
+            ff = self.last_feedforward  # Eq. 8's u_ff, for the kinds configured to keep it
+            ff_c, ff_i = (ff if k in self.transition_ff else None for k in KINDS)
+            d, loop = target.force_dir, self.last_force_loop
+            if a_c > 0.0:  # Eq. 1's force loop kept across the motion only
+                keep = d is not None and not self._force_along_motion(d, target)
+                gains = (self.k_collision, self.damping_for(self.k_collision))
+                force += a_c * transition_force(
+                    obs, target, gains, self.mass_kg, self.inertia_feedforward,
+                    loop if keep else None, ff_c,
                 )  # fmt: skip
-                d = target.force_dir
-                if d is not None and not self._force_along_motion(d, target):
-                    u = u - d * float(d @ u) + self.last_force_loop  # Eq. 1 hybrid kept
-                force += a_c * u
             if a_i > 0.0:
-                u = impedance_term(
-                    obs, target, self.k_max, self.damping_for(self.k_max), self.mass_kg,
-                    self.inertia_feedforward,
-                )  # fmt: skip
-                d = target.force_dir
-                if d is not None:
-                    u = u - d * float(d @ u) + self.last_force_loop
-                force += a_i * u
+                gains = (self.k_max, self.damping_for(self.k_max))
+                force += a_i * transition_force(
+                    obs, target, gains, self.mass_kg, self.inertia_feedforward, loop, ff_i
+                )
             cmd = Command(force=force, torque=cmd.torque)
             self._signals["stiffness_Npm"] = (
                 (1.0 - alpha) * k1 + a_c * self.k_collision + a_i * self.k_max

@@ -188,6 +188,7 @@ class AVIC(FixedImpedance):
             1.0 if tau == 0.0 else first_order_alpha(control_dt, 1 / (2 * math.pi * tau))
         )
         self._err_lp = math.nan  # ε̄_t: the low-passed error of this trial
+        self.last_feedforward = np.zeros(dim)  # λ Ŵ subtracted by the last step (Eq. 4a)
         self._signals.update(self._avic_signals(math.nan, math.nan, math.nan, math.nan))
 
     @property
@@ -251,11 +252,13 @@ class AVIC(FixedImpedance):
         self.forecast.push(s, self.model.predict(s) if self.model.ready else None)
         pred_next = self.forecast.next_prediction()  # D̂_{t+1}, for the command until t+1
         u = u_motion + u_force
+        self.last_feedforward = self._zero  # λ Ŵ of Eq. 4a as applied (Eq. 8 reuses it)
         if self.feedforward and pred_next is not None and lam > 0.0:
             w = self.predicted_wrench(float(pred_next[0]), obs)
             if target.force_dir is not None:
                 w = w - target.force_dir * float(target.force_dir @ w)
-            u -= lam * w
+            self.last_feedforward = lam * w
+            u -= self.last_feedforward
         sig = self._signals  # the fixed key set of _avic_signals, updated in place
         sig["lambda"], sig["pred_force_N"], sig["persist_force_N"] = self._lam, pred, persist
         sig["pred_error_N"], sig["pred_error_lp_N"] = err, self._err_lp

@@ -38,7 +38,10 @@ described in :mod:`ccm.sim.pybullet_robot`):
   spanned by the patch edges); geometrically faithful, but the tool face, sunk slightly
   into the surface it rests on, catches on the side face of the next box: normal-force
   spikes of 57-136 N at a 10 N press were measured at edge crossings (friction_map: one
-  ~26 N, 7 ms transient from the friction step itself).
+  ~26 N, 7 ms transient from the friction step itself). ``footprint``: the continuous top of
+  ``friction_map``, its friction the pressure-weighted mean over the tool's face from the
+  previous step's table contacts, so it ramps across a patch edge over the face's width
+  (:mod:`ccm.sim.footprint_friction`, physics and limits there).
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ import numpy as np
 
 from ccm.errors import ConfigError, SimulationDiverged, check_vector
 from ccm.sim.base import Simulator, all_finite
+from ccm.sim.footprint_friction import face_grid, table_friction
 from ccm.sim.pybullet_robot import (
     DOWN,
     GRAVITY,
@@ -144,6 +148,9 @@ class PyBullet3D(Simulator):
         self._table_body = -1
         self._table_mu = -1.0
         self._patch_map: list[tuple[float, float, float, float, float]] = []
+        self._face = (tool.size[0], tool.size[1])  # the tool point's face [m] (footprint)
+        self._grid = face_grid(*self._face, self.config.footprint_grid)
+        self._table_contacts: list[tuple[Any, float]] = []  # last step's (position, N)
         self._steps = 0
         self._rng: np.random.Generator | None = None
 
@@ -190,6 +197,7 @@ class PyBullet3D(Simulator):
             numSolverIterations=self.config.solver_iterations, physicsClientId=cid
         )
         self._body_friction = {}
+        self._table_contacts = []
         self._build_scene()
         self._robot, self._tool_link = load_robot(p, cid, self.config)
         self._place_at_start()
@@ -307,7 +315,7 @@ class PyBullet3D(Simulator):
             (cx, cy), (w, d) = table.center, table.size
             grey = (0.6, 0.5, 0.4, 1.0)
             blue = (0.2, 0.4, 0.8, 1.0)
-            if self.config.patch_mode == "friction_map" or not table.patches:
+            if self.config.patch_mode != "boxes" or not table.patches:
                 h = table.height
                 self._table_body = self._static_box(
                     (cx, cy, h / 2.0), (w / 2, d / 2, h / 2), table.friction, table.restitution,
@@ -347,15 +355,15 @@ class PyBullet3D(Simulator):
             self._static_box(center, half, mu, table.restitution, blue if is_patch else grey)
 
     def _update_patch_friction(self) -> None:
-        """``friction_map``: give the table the friction of the patch under the tool point."""
+        """``friction_map``: give the table the friction of the patch under the tool point;
+        ``footprint``: the pressure-weighted mean under the tool's face (module docstring)."""
         if not self._patch_map:
             return
-        x, y = float(self._tip[0][0]), float(self._tip[0][1])
-        mu = self.scene.table.friction if self.scene.table is not None else 0.0
-        for x0, x1, y0, y1, pmu in self._patch_map:
-            if x0 <= x <= x1 and y0 <= y <= y1:
-                mu = pmu
-                break
+        base = self.scene.table.friction if self.scene.table is not None else 0.0
+        mu = table_friction(
+            self.config.patch_mode, self._tip[0], self._rot[:, :2], self._table_contacts,
+            self._face, self._grid, self._patch_map, base,
+        )  # fmt: skip
         if mu != self._table_mu:
             self._p.changeDynamics(
                 self._table_body, -1, lateralFriction=mu, physicsClientId=self._client
@@ -453,6 +461,7 @@ class PyBullet3D(Simulator):
         (:func:`contact_split`, :func:`contact_normal_force`)."""
         p, cid = self._p, self._client
         pts = p.getContactPoints(bodyA=self._robot, linkIndexA=self._tool_link, physicsClientId=cid)
+        self._table_contacts = [(c[6], c[9]) for c in pts if c[2] == self._table_body]
         if not pts:
             return np.zeros(3), np.zeros(3), 0, -1.0, np.zeros(6)
         tip = self._tip[0]
@@ -494,6 +503,7 @@ class PyBullet3D(Simulator):
             n_contacts=n,
             extra={
                 "surface_friction": mu if n > 0 else -1.0,
+                "table_friction": self._table_mu,  # the table's friction this step (patches)
                 "contact": 1.0 if n > 0 else 0.0,
                 "table_normal_N": float(split[0]),  # normal force from the table [N]
                 "box_normal_N": float(split[1]),  # ... from scene.boxes (walls) [N]

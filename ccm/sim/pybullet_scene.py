@@ -50,9 +50,10 @@ _SIM_KEYS = (
     "contact_stiffness",
     "contact_damping",
     "patch_mode",
+    "footprint_grid",
     "sensor",
 )
-PATCH_MODES = ("friction_map", "boxes")
+PATCH_MODES = ("friction_map", "footprint", "boxes")
 
 
 # --------------------------------------------------------------------------- config
@@ -106,8 +107,11 @@ class PyBullet3DConfig:
         contact_stiffness: tool contact stiffness [N/m] (Bullet's compliant contact model).
         contact_damping: tool contact damping [N s/m].
         patch_mode: ``friction_map`` (one continuous table top whose friction is set each
-            physics step from the patch under the tool point) or ``boxes`` (thin patch boxes
-            flush with the top; the tool's edge catches on their side faces).
+            physics step from the patch under the tool point), ``footprint`` (the same top,
+            its friction the pressure-weighted mean over the tool's face:
+            :mod:`ccm.sim.footprint_friction`) or ``boxes`` (thin patch boxes flush with the
+            top; the tool's edge catches on their side faces).
+        footprint_grid: n of the n × n grid ``footprint`` integrates the face on.
         sensor: F/T sensor noise and bias (force (3,), torque (3,)).
     """
 
@@ -126,6 +130,7 @@ class PyBullet3DConfig:
     contact_stiffness: float = 1.0e5
     contact_damping: float = 1.0e3
     patch_mode: str = "friction_map"
+    footprint_grid: int = 32
     sensor: SensorConfig = field(default_factory=lambda: SensorConfig.ideal(3, 3))
 
     @classmethod
@@ -170,6 +175,9 @@ class PyBullet3DConfig:
             ),
             patch_mode=check_choice(
                 f"{prefix}.patch_mode", d.get("patch_mode", cls.patch_mode), PATCH_MODES
+            ),
+            footprint_grid=check_int_positive(
+                f"{prefix}.footprint_grid", d.get("footprint_grid", cls.footprint_grid)
             ),
             sensor=SensorConfig.from_mapping(d.get("sensor"), 3, 3, f"{prefix}.sensor"),
         )
