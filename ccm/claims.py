@@ -18,12 +18,14 @@ seeds):
 
 Verdict over n seeds, from d = the per-seed margin (``b − a``, ``value − a/b``,
 ``value − a``, ``a − value``, ``value − (a − b)`` or ``tolerance · |value| − |a − value|``;
-positive when the claim holds): **reproduced** when the
-lower end of the 95 % confidence interval of the mean margin (t-interval; for one seed the
-margin itself) is > 0 (≥ 0 for the bounds ``at_most``, ``at_least``,
-``difference_at_most`` and ``within``, which hold at equality), **partially** when only the
-mean margin is, **not reproduced** otherwise. A claim whose values are missing is
-**not measured**.
+positive when the claim holds; ≥ 0 suffices for the bounds ``at_most``, ``at_least``,
+``difference_at_most`` and ``within``, which hold at equality): :func:`ccm.claim_stats.decide`,
+the 95 % t-interval of the mean margin, or a sign test where the margins are clearly not
+normal; the report says which rule decided. A reference may take the metric's magnitude
+(``abs: true``: a signed error against a bound). Every run of the claim's experiment must be
+``ok`` and give its values: otherwise the claim is **not measured**, and the text says how many
+runs are missing and what the measured ones give. For a comparison of two references the text
+shows both values next to the ratio or difference.
 
 A claim about a mechanism may name ``requires``: references with bounds
 (``{condition, metric, at_least, at_most}``) that show the mechanism acting in a run, e.g.
@@ -43,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from ccm.claim_stats import decide, mean_ci
 from ccm.errors import ConfigError, check_keys
 
 COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least", "difference_at_most", "within")
@@ -50,12 +53,8 @@ _TWO_REFS = ("less_than", "ratio_at_most", "difference_at_most")
 _CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment", "compare",
                "a", "b", "value", "tolerance", "figures", "note", "discussion", "requires",
                "task")  # fmt: skip
-_REF_KEYS = ("condition", "metric", "trial")
+_REF_KEYS = ("condition", "metric", "trial", "abs")
 _REQ_KEYS = (*_REF_KEYS, "at_least", "at_most")
-# two-sided 95 % Student-t quantiles for 1..30 degrees of freedom (larger: normal 1.96)
-_T95 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179,
-        2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064,
-        2.060, 2.056, 2.052, 2.048, 2.045, 2.042)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -65,6 +64,7 @@ class Ref:
     condition: str
     metric: str
     trial: int | None = None
+    absolute: bool = False  # YAML ``abs``: the metric's magnitude (a signed error vs a bound)
 
     def value(self, summary: Mapping[str, Any]) -> float | None:
         if self.trial is None:
@@ -76,11 +76,14 @@ class Ref:
                 if t.get("condition") == self.condition and t.get("trial") == self.trial
             ]
             v = rows[0].get(self.metric) if rows else None
-        return float(v) if isinstance(v, int | float) and math.isfinite(v) else None
+        if not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v):
+            return None
+        return abs(float(v)) if self.absolute else float(v)
 
     def __str__(self) -> str:
         t = f" (trial {self.trial})" if self.trial is not None else ""
-        return f"{self.condition}.{self.metric}{t}"
+        name = f"{self.condition}.{self.metric}"
+        return f"|{name}|{t}" if self.absolute else f"{name}{t}"
 
 
 @dataclass(frozen=True)
@@ -145,7 +148,10 @@ def _ref(key: str, d: Any) -> Ref:
     trial = d.get("trial")
     if trial is not None and (isinstance(trial, bool) or not isinstance(trial, int) or trial < 1):
         raise ConfigError(f"{key}.trial", f"must be a trial number >= 1, got {trial!r}")
-    return Ref(d["condition"], d["metric"], trial)
+    absolute = d.get("abs", False)
+    if not isinstance(absolute, bool):
+        raise ConfigError(f"{key}.abs", f"must be true or false, got {absolute!r}")
+    return Ref(d["condition"], d["metric"], trial, absolute)
 
 
 def _requirement(key: str, d: Any) -> Requirement:
@@ -261,48 +267,57 @@ def _margin(c: Claim, s: Mapping[str, Any]) -> tuple[float, float] | None:
     return a / b, c.value - a / b
 
 
-def t95(n: int) -> float:
-    """Two-sided 95 % Student-t quantile for the mean of ``n`` samples (NaN if n < 2)."""
-    if n < 2:
-        return math.nan
-    return _T95[n - 2] if n - 1 <= len(_T95) else 1.96
+def _of_experiment(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> list[Mapping]:
+    """Every run of the claim's experiment (and task), whatever its status; a failed run that
+    does not say its task counts for every task of its experiment."""
+
+    def of_task(s: Mapping[str, Any]) -> bool:
+        return (
+            claim.task is None
+            or s.get("task", claim.task if s.get("status") != "ok" else None) == claim.task
+        )
+
+    return [s for s in summaries if s.get("experiment") == claim.experiment and of_task(s)]
 
 
-def _mean_ci(x: Sequence[float]) -> tuple[float, float]:
-    """Mean and 95 % t-interval half-width; one seed: no interval (NaN)."""
-    arr = np.asarray(x, dtype=float)
-    if arr.size < 2:
-        return float(arr.mean()), math.nan
-    return float(arr.mean()), float(t95(arr.size) * arr.std(ddof=1) / math.sqrt(arr.size))
+def _two_values(claim: Claim, runs: Sequence[Mapping[str, Any]]) -> str:
+    """ "a = …, b = …" (means over the runs) for a comparison of two references, so a ratio or
+    difference never stands without the values it came from."""
+    if claim.b is None:
+        return ""
+    parts = []
+    for ref in (claim.a, claim.b):
+        vals = [v for v in (ref.value(s) for s in runs) if v is not None]
+        parts.append(f"{ref} = {float(np.mean(vals)):.4g}" if vals else f"{ref} = –")
+    return f" ({', '.join(parts)})"
 
 
 def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
-    """Judge ``claim`` on the ``ok`` summaries of its experiment (one per seed)."""
-    runs = [
-        s
-        for s in summaries
-        if s.get("status") == "ok"
-        and s.get("experiment") == claim.experiment
-        and (claim.task is None or s.get("task") == claim.task)
-    ]
-    measured = [(s, p) for s, p in ((s, _margin(claim, s)) for s in runs) if p is not None]
+    """Judge ``claim`` on the runs of its experiment (one per seed; module docstring).
+
+    Every run of the experiment must be ``ok`` and give the claim's values: a run that failed,
+    or whose value is missing, makes the claim **not measured** (the text says how many runs
+    are missing and what the measured ones would give), so a verdict never rests silently on
+    the seeds that happened to work.
+    """
+    every = _of_experiment(claim, summaries)
+    measured = [
+        (s, p) for s, p in ((s, _margin(claim, s)) for s in every if s.get("status") == "ok")
+        if p is not None
+    ]  # fmt: skip
     if not measured:
         return Verdict(claim, "not measured", "–", None, None, 0)
     qty, margins = zip(*(p for _, p in measured), strict=True)
     acting = [all(r.met(s) for r in claim.requires) for s, _ in measured]
-    m_mean, m_ci = _mean_ci(margins)
-    q_mean, q_ci = _mean_ci(qty)
+    q_mean, q_ci = mean_ci(qty)
     # a bound (at_most / at_least) holds at equality; a comparison of two values must be strict
     strict = claim.compare in ("less_than", "ratio_at_most")
 
     def holds(x: float) -> bool:
         return x > 0 if strict else x >= 0
 
-    verdict = (
-        "reproduced" if holds(m_mean - (0.0 if math.isnan(m_ci) else m_ci))
-        else "partially" if holds(m_mean)
-        else "not reproduced"
-    )  # fmt: skip
+    decision = decide(margins, holds)
+    verdict = decision.verdict
     if not any(acting):
         verdict = "not reproduced"
     elif not all(acting) and verdict == "reproduced":
@@ -316,8 +331,18 @@ def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
     n = len(margins)
     spread = f"(n = {n}, one seed: no interval)" if n < 2 else f"± {q_ci:.2g} (n = {n})"
     held = sum(holds(m) and ok for m, ok in zip(margins, acting, strict=True))
-    ours = f"{label} = {q_mean:.4g} {spread}; holds in {held} of {n} runs"
+    ours = (
+        f"{label} = {q_mean:.4g} {spread}{_two_values(claim, [s for s, _ in measured])}; "
+        f"holds in {held} of {n} runs; rule: {decision.rule}"
+    )
     if claim.requires:
         need = ", ".join(str(r) for r in claim.requires)
         ours += f"; requires {need}: met in {sum(acting)} of {n}"
+    missing = len(every) - n
+    if missing:
+        ours = (
+            f"{missing} of {len(every)} runs missing (failed, or no value); "
+            f"the {n} measured: {verdict}: {ours}"
+        )
+        verdict = "not measured"
     return Verdict(claim, verdict, ours, q_mean, None if n < 2 else q_ci, n)

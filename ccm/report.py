@@ -24,7 +24,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ccm.claims import Verdict, evaluate, load_claims, t95
+from ccm.claim_stats import t95
+from ccm.claims import Verdict, evaluate, load_claims
 from ccm.errors import ConfigError
 from ccm.records import write_atomic
 
@@ -32,7 +33,9 @@ DEFAULT_CLAIMS = Path(__file__).resolve().parents[1] / "experiments" / "claims.y
 
 
 def collect(root: Path) -> list[tuple[Path, dict[str, Any]]]:
-    """(run dir, summary) for every readable summary.json under ``root``, sorted by path."""
+    """(run dir, summary) for every run under ``root``, sorted by path: each readable
+    summary.json, and each run directory that has its Hydra config but no summary.json (a
+    job killed before it wrote one), as a failed run of the experiment its config names."""
     if not root.is_dir():
         raise ConfigError("report.dir", f"{root} is not a directory")
     runs = []
@@ -41,9 +44,42 @@ def collect(root: Path) -> list[tuple[Path, dict[str, Any]]]:
             runs.append((path.parent, json.loads(path.read_text(encoding="utf-8"))))
         except (OSError, json.JSONDecodeError) as exc:
             runs.append((path.parent, {"status": "failed", "error": f"unreadable: {exc}"}))
+    for cfg in sorted(root.rglob(".hydra/config.yaml")):
+        run = cfg.parent.parent
+        if not (run / "summary.json").is_file():
+            runs.append((run, _unfinished(cfg)))
     if not runs:
         raise ConfigError("report.dir", f"no summary.json under {root}")
-    return runs
+    return sorted(runs, key=lambda r: str(r[0]))
+
+
+def _hydra_config(run: Path) -> dict[str, Any]:
+    """The run's composed config (``.hydra/config.yaml``), or {} without a readable one."""
+    import yaml
+
+    try:
+        data = yaml.safe_load((run / ".hydra" / "config.yaml").read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def truncated(run: Path) -> bool:
+    """Whether the run's trials were cut short (``experiment.fast`` or ``max_time_s``)."""
+    exp = _hydra_config(run).get("experiment")
+    return isinstance(exp, dict) and (bool(exp.get("fast")) or exp.get("max_time_s") is not None)
+
+
+def _unfinished(cfg: Path) -> dict[str, Any]:
+    """The failed-run record of a run directory without summary.json."""
+    data = _hydra_config(cfg.parent.parent)
+    exp = data.get("experiment")
+    return {
+        "experiment": exp.get("name") if isinstance(exp, dict) else None,
+        "seed": data.get("seed"),
+        "status": "failed",
+        "error": "no summary.json (the run did not finish)",
+    }
 
 
 def metrics_table(runs: Sequence[tuple[Path, dict[str, Any]]]) -> Any:
@@ -99,10 +135,21 @@ def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
     counts: dict[str, int] = {}
     for v in verdicts:
         counts[v.verdict] = counts.get(v.verdict, 0) + 1
-    tally = ", ".join(f"{n} {k}" for k, n in sorted(counts.items()))
+    tally = f"{len(verdicts)} in {claims_path.name}: " + ", ".join(
+        f"{n} {k}" for k, n in sorted(counts.items())
+    )
+    cut = sum(truncated(d) for d, _ in runs)
+    banner = (
+        f"**Not results: {cut} of {len(runs)} runs were truncated** (`experiment.fast` or "
+        "`max_time_s`, e.g. `make reproduce-paper-quick`). This report checks that the "
+        "pipeline runs; its verdicts say nothing about the papers."
+        if cut
+        else ""
+    )
 
     md = [
-        f"# ccm report: {root}", "", f"{len(runs)} runs; claims: {tally}.", "",
+        f"# ccm report: {root}", "", *([banner, ""] if banner else []),
+        f"{len(runs)} runs; claims: {tally}.", "",
         "| claim | source | paper | ours (mean ± 95 % CI) | verdict |", "|---|---|---|---|---|",
     ]  # fmt: skip
     hb = [
@@ -114,9 +161,16 @@ def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
         "th.verdict{width:8%}"
         ".reproduced{background:#d8f5d0}.partially{background:#fff2c2}"
         ".not.reproduced,.not-reproduced{background:#f8d0d0}.not-measured{background:#eee}"
+        ".banner{background:#f8d0d0;border:2px solid #b00;padding:8px;font-weight:bold}"
         "img{max-width:100%;height:auto;display:block;margin:4px 0}",
         "</style></head><body>",
-        f"<h1>ccm report</h1><p>{html.escape(str(root))}: {len(runs)} runs; claims: "
+        "<h1>ccm report</h1>"
+        + (
+            f"<p class='banner'>{html.escape(banner.replace('**', '').replace('`', ''))}</p>"
+            if banner
+            else ""
+        )
+        + f"<p>{html.escape(str(root))}: {len(runs)} runs; claims: "
         f"{html.escape(tally)}.</p><h2>Claims</h2><table class='claims'><tr>"
         "<th class='claim'>claim</th><th class='src'>source</th><th class='paper'>paper</th>"
         "<th class='ours'>ours (mean ± 95 % CI)</th><th class='verdict'>verdict</th>"

@@ -149,3 +149,63 @@ def test_duplicate_ids_and_unreadable_files(tmp_path: Path) -> None:
     path.write_text("claims: [\n", encoding="utf-8")
     with pytest.raises(ConfigError, match="cannot read claims"):
         load_claims(path)
+
+
+def test_a_signed_error_is_bounded_by_its_size() -> None:
+    """``abs: true`` judges |error| against an upper bound: −10 mm is not within 1 mm."""
+    claim = {**LESS, "compare": "at_most", "value": 0.001, "b": None,
+             "a": {"condition": "x", "metric": "m", "abs": True}}  # fmt: skip
+    c = parse_claim(claim, "claims[0]")
+    assert evaluate(c, [_summary("e", -0.010, 0.0)] * 3).verdict == "not reproduced"
+    assert evaluate(c, [_summary("e", -0.0005, 0.0)] * 3).verdict == "reproduced"
+    signed = parse_claim({**claim, "a": {"condition": "x", "metric": "m"}}, "claims[0]")
+    assert evaluate(signed, [_summary("e", -0.010, 0.0)] * 3).verdict == "reproduced"
+    with pytest.raises(ConfigError, match=r"claims\[0\]\.a\.abs"):
+        parse_claim({**claim, "a": {"condition": "x", "metric": "m", "abs": "yes"}}, "claims[0]")
+
+
+def test_a_failed_seed_or_missing_value_makes_the_claim_not_measured() -> None:
+    """One ok seed and four failed ones is no verdict (issue #18): the text says how many runs
+    are missing and what the measured ones give."""
+    c = parse_claim(LESS, "claims[0]")
+    failed = {"experiment": "e", "status": "failed", "error": "boom"}
+    v = evaluate(c, [_summary("e", 1.0, 2.0), *[failed] * 4])
+    assert v.verdict == "not measured" and v.n_seeds == 1
+    assert v.ours.startswith(
+        "4 of 5 runs missing (failed, or no value); the 1 measured: reproduced"
+    )
+    no_value = {**_summary("e", 1.0, 2.0), "conditions": {"x": {"m": None}, "y": {"m": 2.0}}}
+    assert evaluate(c, [_summary("e", 1.0, 2.0)] * 4 + [no_value]).verdict == "not measured"
+    assert evaluate(c, [_summary("e", 1.0, 2.0)] * 5).verdict == "reproduced"
+
+
+def test_a_bound_met_by_nothing_happening_needs_its_precondition() -> None:
+    """H2-no-false-new-modes: zero false new modes in runs without a single transition is
+    no evidence; the shipped claim requires n_true_transitions >= 1."""
+    shipped = {c.id: c for c in load_claims(CLAIMS)}["H2-no-false-new-modes"]
+    assert [str(r) for r in shipped.requires] == ["1 <= avic_modes.n_true_transitions"]
+
+    def run(transitions: float) -> dict:
+        m = {"false_new_modes": 0.0, "n_true_transitions": transitions}
+        return {"experiment": shipped.experiment, "status": "ok", "conditions": {"avic_modes": m}}
+
+    assert evaluate(shipped, [run(0.0)] * 3).verdict == "not reproduced"
+    assert evaluate(shipped, [run(4.0)] * 3).verdict == "reproduced"
+
+
+def test_heavy_tailed_margins_are_judged_by_the_sign_test() -> None:
+    """Five seeds that all hold, one by far more: the t-interval would cross zero, the sign
+    test (p = 1/32) reproduces, and the report names the rule; four of five hold: p = 6/32,
+    partially."""
+    from ccm.claim_stats import decide, sign_test_p
+
+    assert sign_test_p(5, 5) == pytest.approx(1 / 32) and sign_test_p(4, 5) == pytest.approx(6 / 32)
+    assert sign_test_p(0, 5) == 1.0
+    c = parse_claim(LESS, "claims[0]")
+    heavy = [(1.0, 1.01), (1.0, 1.02), (1.0, 1.01), (1.0, 1.02), (1.0, 9.0)]  # margins b − a
+    v = evaluate(c, [_summary("e", a, b) for a, b in heavy])
+    assert v.verdict == "reproduced" and "sign test (5 of 5 hold" in v.ours
+    d = decide([0.01, 0.02, 0.01, -0.02, 8.0], lambda m: m > 0)
+    assert d.verdict == "partially" and d.rule.startswith("sign test (4 of 5 hold")
+    normal = decide([0.9, 1.1, 1.0, 1.2, 0.8], lambda m: m > 0)
+    assert normal.verdict == "reproduced" and normal.rule == "95 % t-interval of the mean margin"

@@ -49,7 +49,9 @@ def test_report_lists_claims_verdicts_figures_and_failures(sweep: Path) -> None:
     assert main([str(sweep), "--claims", str(sweep.parent / "claims.yaml")]) == 0
     md = (sweep / "report.md").read_text(encoding="utf-8")
     page = (sweep / "report.html").read_text(encoding="utf-8")
-    assert "**c1**" in md and "**reproduced**" in md and "**not measured**" in md
+    # one of c1's four runs failed: not measured, with what the three measured ones give
+    assert "**c1**" in md and "**reproduced**" not in md and "**not measured**" in md
+    assert "1 of 4 runs missing (failed, or no value); the 3 measured: reproduced" in md
     assert "controller.k: must be > 0" in md and "controller.k: must be &gt; 0" not in md
     assert "data:image/png;base64," in page  # self-contained: the figure is embedded
     assert "controller.k: must be &gt; 0" in page
@@ -71,6 +73,40 @@ def test_report_lists_claims_verdicts_figures_and_failures(sweep: Path) -> None:
     parser = Tags()
     parser.feed(page)
     assert parser.ok and parser.stack == []  # every element closed, in order
+
+
+def test_a_claim_needs_every_run_of_its_experiment(sweep: Path) -> None:
+    """Without the failed run the three seeds decide; a run dir that never wrote its
+    summary (a killed job: only its Hydra config) counts as missing again."""
+    import shutil
+
+    shutil.rmtree(sweep / "3")
+    claims = str(sweep.parent / "claims.yaml")
+    assert main([str(sweep), "--claims", claims]) == 0
+    md = (sweep / "report.md").read_text(encoding="utf-8")
+    assert "**reproduced**" in md and "runs missing" not in md
+    assert "x.m = 1.033, y.m = 2.033" in md  # the values behind the comparison
+    hydra = sweep / "4" / ".hydra"
+    hydra.mkdir(parents=True)
+    (hydra / "config.yaml").write_text("experiment:\n  name: e\nseed: 4\n", encoding="utf-8")
+    assert main([str(sweep), "--claims", claims]) == 0
+    md = (sweep / "report.md").read_text(encoding="utf-8")
+    assert "1 of 4 runs missing" in md and "no summary.json" in md
+
+
+def test_a_report_of_truncated_runs_says_it_is_no_result(sweep: Path) -> None:
+    """Runs cut short (experiment.fast, as make reproduce-paper-quick) put a banner on top."""
+    claims = str(sweep.parent / "claims.yaml")
+    assert main([str(sweep), "--claims", claims]) == 0
+    assert "Not results" not in (sweep / "report.md").read_text(encoding="utf-8")
+    hydra = sweep / "0" / ".hydra"
+    hydra.mkdir()
+    (hydra / "config.yaml").write_text("experiment:\n  name: e\n  fast: true\n", "utf-8")
+    assert main([str(sweep), "--claims", claims]) == 0
+    md = (sweep / "report.md").read_text(encoding="utf-8")
+    page = (sweep / "report.html").read_text(encoding="utf-8")
+    assert md.splitlines()[2].startswith("**Not results: 1 of 4 runs were truncated**")
+    assert "class='banner'>Not results: 1 of 4 runs were truncated" in page
 
 
 def test_metrics_table_means_over_seeds(sweep: Path) -> None:
