@@ -72,3 +72,43 @@ def test_bounds_hold_at_the_value_and_not_beyond_it(
     10 % or more would call the misses reproduced."""
     claim = {"compare": compare, "value": value, "b": None}
     assert verdict(claim, full=measured) == expected
+
+
+def test_less_than_is_strict() -> None:
+    """Equal values are not ``a < b`` (a rule that lets a tie hold passes a null result)."""
+    assert verdict({"compare": "less_than"}, full=50.0) == "not reproduced"
+    assert verdict({"compare": "less_than"}, full=49.0) == "reproduced"
+
+
+@pytest.mark.parametrize(
+    ("measured", "expected"),
+    [(3.0 * 0.9 + 50.0, "reproduced"), (3.0 * 1.1 + 50.0, "not reproduced")],
+)
+def test_difference_at_most_has_no_slack(measured: float, expected: str) -> None:
+    """``difference_at_most 3``: a − b 10 % inside and outside the bound."""
+    assert verdict({"compare": "difference_at_most", "value": 3.0}, full=measured) == expected
+
+
+@pytest.mark.parametrize(("off", "expected"), [(0.9, "reproduced"), (1.1, "not reproduced")])
+def test_within_uses_its_tolerance_exactly(off: float, expected: str) -> None:
+    """``within 8 ± 15 %``: 10 % inside and outside the 1.2 N tolerance."""
+    claim = {"compare": "within", "value": 8.0, "tolerance": 0.15, "b": None}
+    assert verdict(claim, full=8.0 + off * 1.2) == expected
+
+
+def test_a_requirement_holds_its_upper_bound() -> None:
+    """``requires`` with at_most: a run above it does not count (the mechanism is pinned)."""
+    req = [{"condition": "full", "metric": "peak_impact_force_N", "at_least": 1.0, "at_most": 10.0}]
+    claim = {"compare": "at_most", "value": 20.0, "b": None, "requires": req}
+    assert verdict(claim, full=9.0) == "reproduced"
+    assert verdict(claim, full=15.0) == "not reproduced"
+
+
+def test_the_interval_is_students_t_with_the_sample_std() -> None:
+    """Five margins 1, 2, 3, 4, 5: mean 3, sample std sqrt(2.5), t(4) = 2.776, half-width
+    2.776 sqrt(2.5) / sqrt(5) = 1.963 (a quantile one row off, or ddof 0, changes it)."""
+    from ccm.claim_stats import mean_ci, t95
+
+    assert t95(5) == pytest.approx(2.776) and t95(2) == pytest.approx(12.706)
+    mean, ci = mean_ci([1.0, 2.0, 3.0, 4.0, 5.0])
+    assert mean == 3.0 and ci == pytest.approx(2.776 * 2.5**0.5 / 5**0.5)

@@ -148,3 +148,14 @@ def test_peak_impact_force_is_the_largest_impact_of_the_trial(
     assert out["impact_force_N_table"] == pytest.approx(table_N)
     assert out["impact_force_N_wall"] == pytest.approx(wall_N)
     assert out["peak_impact_force_N"] == pytest.approx(30.0)
+
+
+def test_peak_impact_acceleration_is_the_largest_of_the_trial() -> None:
+    """The same for ``peak_impact_acc_mps2``: a table met at 0.1 m/s and a wall at 0.05 m/s
+    stop with different accelerations, and the trial's peak is the larger."""
+    log = two_contact_log(8.0, 30.0)
+    log["vel_x"] = log["vel_x"] * 0.5  # the slide into the wall at half the speed
+    out = contact_metrics(log, 3, CONTACT_PARAMS)
+    accs = (out["impact_acc_mps2_table"], out["impact_acc_mps2_wall"])
+    assert accs[0] > 1.5 * accs[1]
+    assert out["peak_impact_acc_mps2"] == pytest.approx(max(accs))
