@@ -89,6 +89,9 @@ Impact-less transitions (seed A §4.5.2, Figs 19-20), for every task contact of 
   the window the delay is censored at the window's end (a lower bound on the true delay) and
   ``switch_detected_<name>`` = 0.0. All three are None without a run with an onset, and the
   last two None for a controller without mode detection (no ``mode`` column).
+  ``switch_known_<name>`` = 1.0 if that detecting decision took a mode the controller already
+  had (``mode_event`` = 1, Algorithm 1's known mode; seed A §4.5.2: segment 4 "recognized as a
+  mode that it had experienced before"), 0.0 if it made a new one (2); None if undetected.
 
 Every value is a plain float or None, and the keys are the same every trial of a task (a
 missing onset gives None, not a missing key). ``completion_time_s``, ``peak_acc_mps2`` and
@@ -323,22 +326,23 @@ def _patch_metrics(
         ok = k >= 0 and dist[k] <= near
         out[f"region_m_{name}"] = float(beliefs[k]["region_m"]) if ok else None
         gap = np.linalg.norm(pos - p, axis=1)
-        onset, delay, found = _switch_detection(log, t, inside, gap)
+        onset, delay, found, known = _switch_detection(log, t, inside, gap)
         out[f"switch_onset_s_{name}"] = onset
         out[f"switch_detect_delay_s_{name}"] = delay
         out[f"switch_detected_{name}"] = found
+        out[f"switch_known_{name}"] = known
     return out
 
 
 def _switch_detection(
     log: Mapping[str, np.ndarray], t: np.ndarray, inside: np.ndarray, gap: np.ndarray
-) -> tuple[float | None, float | None, float | None]:
-    """(onset time, detection delay, detected) of one surface switch (module docstring);
+) -> tuple[float | None, float | None, float | None, float | None]:
+    """(onset time, detection delay, detected, known mode) of one surface switch (module docstring);
     ``inside``: the patch window per step, ``gap``: the tool point's distance from the switch
     position."""
     steps = np.flatnonzero(inside)
     if steps.size == 0:
-        return None, None, None
+        return None, None, None, None
     ends = np.flatnonzero(np.diff(steps) > 1)
     run = steps[: int(ends[0]) + 1] if ends.size else steps  # the first contiguous run
     mu = log.get("truth_table_friction")
@@ -347,13 +351,15 @@ def _switch_detection(
     else:
         changed = np.flatnonzero(np.abs(np.asarray(mu)[run] - float(mu[run[0]])) > 1e-9)
         if changed.size == 0:
-            return None, None, None
+            return None, None, None, None
         o = int(run[changed[0]])
     mode, event = log.get("mode"), log.get("mode_event")
     if mode is None or event is None:
-        return float(t[o]), None, None
+        return float(t[o]), None, None, None
     after = run[run >= o]
-    hit = after[(np.asarray(event)[after] > 0) & (np.asarray(mode)[after] != mode[o])]
+    event = np.asarray(event)
+    hit = after[(event[after] > 0) & (np.asarray(mode)[after] != mode[o])]
     if hit.size:
-        return float(t[o]), float(t[hit[0]] - t[o]), 1.0
-    return float(t[o]), float(t[after[-1]] - t[o]), 0.0
+        known = 1.0 if event[hit[0]] == 1 else 0.0
+        return float(t[o]), float(t[hit[0]] - t[o]), 1.0, known
+    return float(t[o]), float(t[after[-1]] - t[o]), 0.0, None

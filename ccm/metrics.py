@@ -9,9 +9,9 @@ import numpy as np
 
 from ccm.adaptation_metrics import measured_force_norm, prediction_skill, stiffness_adaptation
 from ccm.contact_metrics import contact_metrics
-from ccm.errors import check_int_positive, check_positive
+from ccm.errors import ConfigError, check_int_positive, check_positive
 from ccm.filters import first_order_alpha, lowpass_sequence
-from ccm.mode_metrics import mode_metrics
+from ccm.mode_metrics import in_contact_steps, mode_metrics, true_transition_steps
 from ccm.mpc_metrics import gp_mpc_metrics
 
 #: metrics every trial reports (issue #2)
@@ -219,11 +219,66 @@ def lag_metrics(
     return {"lag_s": best_k * dt}
 
 
+def _block_peaks(err: np.ndarray, mask: np.ndarray, length: int) -> np.ndarray:
+    """Peak of ``err`` in each whole block of ``length`` consecutive ``mask`` steps."""
+    steps = np.flatnonzero(mask)
+    runs = np.split(steps, np.flatnonzero(np.diff(steps) > 1) + 1) if steps.size else []
+    peaks = [
+        err[r[i : i + length]].max() for r in runs for i in range(0, len(r) - length + 1, length)
+    ]
+    return np.asarray(peaks, dtype=float)
+
+
+def error_spike_metrics(
+    log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, float]
+) -> dict[str, float | None]:
+    """Tracking-error spikes at surface changes (seed A §4.3, Fig. 10b: "the peaks in the
+    trajectory error plot correspond to a sudden change of surface").
+
+    True transitions are those of :mod:`ccm.mode_metrics` (truth columns; metrics only). Each
+    has a window [t_j − ``transition_pre_s``, t_j + ``spike_window_s``]. The in-contact steps
+    outside every window are cut into blocks of the same length; their peaks of the motion
+    error (:func:`motion_error`) are the background. A transition *spikes* if its window's
+    peak exceeds the ``spike_quantile`` quantile of the background peaks.
+    ``error_spike_frac``: spiking transitions / all; ``error_spike_ratio``: the median window
+    peak over the median background peak (≈ 1 when changes look like anywhere else). Both
+    None without truth columns, transitions, or at least 5 background blocks.
+    """
+    out: dict[str, float | None] = {"error_spike_frac": None, "error_spike_ratio": None}
+    truth = in_contact_steps(log)
+    if truth is None:
+        return out
+    sid, contact = truth
+    steps = true_transition_steps(sid, contact)
+    pre = check_positive("metrics.transition_pre_s", params.get("transition_pre_s"))
+    after = check_positive("metrics.spike_window_s", params.get("spike_window_s"))
+    q = check_positive("metrics.spike_quantile", params.get("spike_quantile"))
+    if q >= 1.0:
+        raise ConfigError("metrics.spike_quantile", f"must be a quantile in (0, 1), got {q}")
+    t = np.asarray(log["t"], dtype=float)
+    if not steps.size or len(t) < 2:
+        return out
+    axes = "xyz"[:dim]
+    err = motion_error(*(np.column_stack([log[f"{p}_{a}"] for a in axes])
+                         for p in ("pos", "target_pos", "force_dir")))  # fmt: skip
+    windows = [(t >= t[j] - pre) & (t <= t[j] + after) for j in steps]
+    length = max(1, int(round((pre + after) / float(np.median(np.diff(t))))))
+    background = _block_peaks(err, contact & ~np.any(windows, axis=0), length)
+    if background.size < 5:
+        return out
+    peaks = np.array([err[w].max() for w in windows])
+    out["error_spike_frac"] = float(np.mean(peaks > np.quantile(background, q)))
+    typical = float(np.median(background))
+    out["error_spike_ratio"] = float(np.median(peaks) / typical) if typical > 0 else None
+    return out
+
+
 #: name -> function(log, dim, params) -> metrics; chosen per experiment in experiment.metrics
 EXTRA_METRICS = {
     "force_prediction": force_prediction_metrics,
     "lag": lag_metrics,
     "modes": mode_metrics,
+    "error_spikes": error_spike_metrics,
     "contacts": contact_metrics,
     "gp_mpc": gp_mpc_metrics,
 }
@@ -231,8 +286,6 @@ EXTRA_METRICS = {
 
 def check_extra_metrics(cfg: Any) -> list[str]:
     """Validate ``experiment.metrics`` (names from :data:`EXTRA_METRICS`)."""
-    from ccm.errors import ConfigError
-
     names = cfg.experiment.get("metrics") or []
     for name in names:
         if name not in EXTRA_METRICS:

@@ -91,6 +91,16 @@ def test_difference_and_within() -> None:
     assert evaluate(c, [_summary("e", 10.0, 0.0)] * 3).verdict == "not reproduced"
 
 
+def test_ratio_within() -> None:
+    """``ratio_within``: |a / b − value| <= tolerance·|value| (e.g. proportional: 2 ± 25 %)."""
+    c = parse_claim({**LESS, "compare": "ratio_within", "value": 2.0, "tolerance": 0.25}, "c")
+    assert evaluate(c, [_summary("e", 5.0, 2.0)] * 3).verdict == "reproduced"  # 2.5: at the edge
+    assert evaluate(c, [_summary("e", 2.9, 2.0)] * 3).verdict == "not reproduced"  # 1.45: below
+    assert evaluate(c, [_summary("e", 6.0, 2.0)] * 3).verdict == "not reproduced"  # 3.0: above
+    with pytest.raises(ConfigError, match="tolerance"):
+        parse_claim({**LESS, "compare": "ratio_within", "value": 2.0}, "c")
+
+
 def test_a_claim_whose_mechanism_is_inert_does_not_reproduce() -> None:
     """``requires``: a run counts only if the mechanism acted in it (x.act within bounds)."""
     c = parse_claim(

@@ -325,10 +325,13 @@ def test_patch_metrics_look_near_the_surface_boundary() -> None:
     assert contact_metrics(log, 3, params)["region_m_b"] is None  # no beliefs: no region
 
 
-def switch_log(detect_at: float | None, ramp: bool = True) -> dict[str, np.ndarray]:
+def switch_log(
+    detect_at: float | None, ramp: bool = True, kind: float = 2.0
+) -> dict[str, np.ndarray]:
     """The tool slides at 0.1 m/s along +x across a switch at x = 0.45 (t = 0.5 s). The table
     friction ramps 0.2 -> 0.4 from t = 0.3 s (``ramp``; else it steps at 0.5 s); Algorithm 1
-    decides mode 1 (was 0) at ``detect_at`` (None: never)."""
+    decides mode 1 (was 0) at ``detect_at`` (None: never), a new mode (``kind`` 2) or a known
+    one (1)."""
     n = 1000
     t = np.arange(n) * DT
     zeros = np.zeros(n)
@@ -337,7 +340,7 @@ def switch_log(detect_at: float | None, ramp: bool = True) -> dict[str, np.ndarr
     mode, event = zeros.copy(), zeros.copy()
     if detect_at is not None:
         k = int(round(detect_at / DT))
-        mode[k:], event[k] = 1.0, 2.0
+        mode[k:], event[k] = 1.0, kind
     event[100] = 1.0  # a decision for the same mode far before the window: not a detection
     return {"t": t, "segment": zeros, "pos_x": 0.4 + 0.1 * t, "pos_y": zeros, "pos_z": zeros,
             "vel_x": np.full(n, 0.1), "vel_y": zeros, "vel_z": zeros, "true_force_x": zeros,
@@ -355,11 +358,14 @@ def test_switch_detection_delay_runs_from_the_friction_onset_to_the_mode_change(
     assert out["switch_onset_s_b"] == pytest.approx(0.301, abs=1.5e-3)
     assert out["switch_detect_delay_s_b"] == pytest.approx(0.62 - 0.301, abs=1.5e-3)
     assert out["switch_detected_b"] == 1.0
+    assert out["switch_known_b"] == 0.0  # a new mode
+    known = contact_metrics(switch_log(0.62, kind=1.0), 3, params)
+    assert known["switch_known_b"] == 1.0 and known["switch_detected_b"] == 1.0
     step = contact_metrics(switch_log(0.62, ramp=False), 3, params)
     assert step["switch_onset_s_b"] == pytest.approx(0.5, abs=1.5e-3)
     assert step["switch_detect_delay_s_b"] == pytest.approx(0.12, abs=1.5e-3)
     missed = contact_metrics(switch_log(None), 3, params)
-    assert missed["switch_detected_b"] == 0.0
+    assert missed["switch_detected_b"] == 0.0 and missed["switch_known_b"] is None
     assert missed["switch_detect_delay_s_b"] == pytest.approx(0.8 - 0.301, abs=1.5e-3)
     late = contact_metrics(switch_log(0.9), 3, params)  # after the window: not this switch's
     assert late["switch_detected_b"] == 0.0

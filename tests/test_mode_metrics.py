@@ -269,3 +269,43 @@ def test_no_mode_figures_without_mode_signal(tmp_path: Path) -> None:
     assert written
     assert not (tmp_path / "modes.png").exists()
     assert not (tmp_path / "mode_stiffness_error.png").exists()
+
+
+SPIKE_PARAMS = {**PARAMS, "spike_window_s": 0.3, "spike_quantile": 0.95}
+
+
+def spike_log(bumps: Sequence[int]) -> dict[str, np.ndarray]:
+    """Surface changes at steps 1500 and 2500; a noisy ~1 mm error everywhere, and a 5 mm
+    bump 100 steps after each change listed in ``bumps``."""
+    log = make_log(3500, [(500, S0), (1500, S1), (2500, S0)])
+    rng = np.random.default_rng(0)
+    err = 0.001 + 0.0002 * rng.standard_normal(3500)
+    for k in bumps:
+        err[k + 100 : k + 120] = 0.005
+    log["target_pos_x"] = err  # the error lies along x; force_dir is zero (no force axis)
+    return log
+
+
+def test_error_spikes_at_each_surface_change() -> None:
+    """Seed A Fig. 10b: a bump after both changes -> frac 1, ratio ~3; after one -> 0.5;
+    none -> frac ~0 and ratio ~1 (the window peak is only the noise's)."""
+    spikes = EXTRA_METRICS["error_spikes"]
+    both = spikes(spike_log([1500, 2500]), 2, SPIKE_PARAMS)
+    assert both["error_spike_frac"] == 1.0
+    assert both["error_spike_ratio"] > 2.5  # 5 mm against block peaks of ~1.6 mm
+    assert spikes(spike_log([1500]), 2, SPIKE_PARAMS)["error_spike_frac"] == 0.5
+    none = spikes(spike_log([]), 2, SPIKE_PARAMS)
+    assert none["error_spike_frac"] == 0.0 and none["error_spike_ratio"] < 1.3
+    bumps_elsewhere = spike_log([])
+    bumps_elsewhere["target_pos_x"][800:820] = 0.005  # a spike away from any change
+    assert spikes(bumps_elsewhere, 2, SPIKE_PARAMS)["error_spike_frac"] == 0.0
+
+
+def test_error_spikes_need_truth_and_a_valid_quantile() -> None:
+    spikes = EXTRA_METRICS["error_spikes"]
+    log = spike_log([1500])
+    no_truth = {k: v for k, v in log.items() if k != "truth_contact"}
+    none = {"error_spike_frac": None, "error_spike_ratio": None}
+    assert spikes(no_truth, 2, SPIKE_PARAMS) == none
+    with pytest.raises(ConfigError, match="metrics.spike_quantile"):
+        spikes(log, 2, {**SPIKE_PARAMS, "spike_quantile": 1.5})
