@@ -265,6 +265,19 @@ def test_eq9_alone_converges_geometrically_for_beta_below_inverse_slope() -> Non
     assert abs(v - fd / k) < 1e-3
 
 
+def test_beta_estimated_from_the_impacts_needs_no_plant_knowledge() -> None:
+    """beta=None: beta = 1 / the measured through-origin slope. On a plant F = k v one impact
+    gives v_used F_d / F_m = F_d / k for any k (capped by max_step); a known beta would need k."""
+    for k in (80.0, 200.0, 671.0):
+        model = ApproachVelocityModel(beta=None, f_desired=8.0, f_max=10.0, use_model=False)
+        v = model.update(0.05, k * 0.05)
+        assert v == pytest.approx(8.0 / k, abs=1e-12)  # 0.1, 0.04 and 0.012 m/s
+    noisy = ApproachVelocityModel(beta=None, f_desired=8.0, use_model=False)
+    noisy.update(0.05, 20.0)  # slope 400 -> 0.02 m/s
+    assert noisy.next_velocity() == pytest.approx(0.02, abs=1e-12)
+    assert noisy.get_params()["beta"] is None
+
+
 def test_linear_model_reaches_target_in_two_impacts() -> None:
     k = 80.0
     model = ApproachVelocityModel(beta=0.5 / k)

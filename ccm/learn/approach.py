@@ -26,7 +26,9 @@ class ApproachVelocityModel:
 
     1. Eq. 9: v = v_used + β (F_d - F_m). With a plant F = k v this converges to F_d / k for
        0 < β k < 2, monotonically for β <= 1 / k (the paper's "β at most the slope", read as
-       dv/dF).
+       dv/dF). ``beta=None`` estimates β = 1 / k̂ from the impacts so far, k̂ the
+       through-origin least-squares slope of F over v (measured data only; one impact gives
+       v_used · F_d / F_m).
     2. With ``use_model`` and a least-squares line F = a v + b over all impacts (fitted once
        their speeds span >= ``min_velocity_spread``) with a > 0, the target is instead the
        line's speed for F_d, (F_d - b) / a: the paper's linear model "used to compute the
@@ -40,7 +42,8 @@ class ApproachVelocityModel:
 
     Args:
         v_safe: Speed of the first approach, m/s (seed A §4.5.1: 0.05).
-        beta: β of Eq. 9, (m/s)/N (chosen 0.002: monotone for k up to 500 N s/m).
+        beta: β of Eq. 9, (m/s)/N (chosen 0.002: monotone for k up to 500 N s/m), or None to
+            estimate it from the measured impacts (rule 1).
         f_desired: Desired impact force F_d, N (seed A §4.5.1: 8).
         f_max: Maximum allowed impact force, N, >= f_desired (chosen 10).
         v_min, v_max: Speed bounds, m/s (chosen 0.01 and 0.25).
@@ -53,7 +56,7 @@ class ApproachVelocityModel:
     def __init__(
         self,
         v_safe: float = 0.05,
-        beta: float = 0.002,
+        beta: float | None = 0.002,
         f_desired: float = 8.0,
         f_max: float = 10.0,
         v_min: float = 0.01,
@@ -64,7 +67,7 @@ class ApproachVelocityModel:
         key: str = "controller.contacts.approach",
     ) -> None:
         self.key = key
-        self.beta = check_positive(f"{key}.beta", beta)
+        self.beta = None if beta is None else check_positive(f"{key}.beta", beta)
         self.f_max = check_positive(f"{key}.f_max", f_max)
         self.f_desired = check_positive(f"{key}.f_desired", f_desired)
         if self.f_desired > self.f_max:
@@ -113,6 +116,14 @@ class ApproachVelocityModel:
         v, f = np.asarray(self.velocities), np.asarray(self.forces)
         return (float(v @ f / (v @ v)), 0.0) if v.size else None
 
+    def _beta(self) -> float:
+        """β of Eq. 9: the configured value, or 1 / the through-origin slope (rule 1)."""
+        if self.beta is not None:
+            return self.beta
+        v, f = np.asarray(self.velocities), np.asarray(self.forces)
+        slope = float(v @ f / (v @ v))
+        return 1.0 / slope if slope > 0.0 else 0.0
+
     def predict_force(self, v: float) -> float | None:
         """Impact force at speed ``v`` by rule 4's model, N; None before the first impact."""
         model = self._force_model()
@@ -133,7 +144,7 @@ class ApproachVelocityModel:
         if not self.velocities:
             return self.v_safe
         v_used, f_m = self.velocities[-1], self.forces[-1]
-        target = v_used + self.beta * (self.f_desired - f_m)  # Eq. 9
+        target = v_used + self._beta() * (self.f_desired - f_m)  # Eq. 9
         line = self.coef_
         if self.use_model and line is not None and line[0] > 0.0:
             target = (self.f_desired - line[1]) / line[0]
