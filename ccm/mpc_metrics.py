@@ -29,6 +29,11 @@ Definitions (dt = the log's median step):
 * ``belief_correct_final``: 1.0 if the final belief's largest entry is the human's goal;
   ``time_to_belief_s``: the first time the belief in the true goal reaches ``belief_level``
   (None if never; seed B Fig. 11).
+* ``f_ref_toward_goal_N`` (seed B Fig. 11c): the mean over the trial of −f^r · ĝ, with ĝ the
+  unit vector from the trial's first position to the human's true goal (``truth_human_goal_*``)
+  and f^r the controller's ``f_ref_<axis>_N``. The admittance is driven by f − f^r (Eq. 4), so
+  this is the commanded push toward the goal the human chose; None if the start is the goal.
+* ``goal_approach_m``: the distance to the human's true goal at the start minus at the end.
 """
 
 from __future__ import annotations
@@ -112,6 +117,7 @@ def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str,
     va, ra = params.get("varied_axis"), params.get("repeatable_axis")
     if va in damp and ra in damp and damp[va] is not None and damp[ra] is not None:
         out["damping_ratio_varied_repeatable"] = float(np.mean(damp[va]) / np.mean(damp[ra]))
+    out.update(goal_metrics(log, dim))
     beliefs = sorted(k for k in log if k.startswith("belief_"))
     if len(beliefs) > 1 and "truth_human_goal" in log:
         b = np.column_stack([log[k] for k in beliefs])
@@ -119,4 +125,24 @@ def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str,
         out["belief_correct_final"] = 1.0 if int(np.argmax(b[-1])) == goal else 0.0
         hit = np.flatnonzero(b[:, goal] >= float(params.get("belief_level", 0.9)))
         out["time_to_belief_s"] = float(t[hit[0]]) if hit.size else None
+    return out
+
+
+def goal_metrics(log: Mapping[str, np.ndarray], dim: int) -> dict[str, float | None]:
+    """``goal_approach_m`` and ``f_ref_toward_goal_N`` (module docstring); ``{}`` when the log
+    has no true human goal for every axis (no simulated human)."""
+    ax = AXES[:dim]
+    if not all(f"truth_human_goal_{a}_m" in log for a in ax):
+        return {}
+    goal = np.array([log[f"truth_human_goal_{a}_m"][-1] for a in ax], dtype=float)
+    pos = np.column_stack([log[f"pos_{a}"] for a in ax])
+    dist0 = float(np.linalg.norm(goal - pos[0]))
+    out: dict[str, float | None] = {
+        "goal_approach_m": dist0 - float(np.linalg.norm(goal - pos[-1]))
+    }
+    if all(f"f_ref_{a}_N" in log for a in ax):
+        f_ref = np.column_stack([log[f"f_ref_{a}_N"] for a in ax])
+        out["f_ref_toward_goal_N"] = (
+            float(np.mean(-f_ref @ ((goal - pos[0]) / dist0))) if dist0 > 0.0 else None
+        )
     return out

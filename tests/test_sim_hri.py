@@ -182,6 +182,9 @@ def test_human_random_goal_per_seed() -> None:
     assert len(set(drawn)) > 1, "different seeds draw different goals"
     assert set(drawn) <= {0.0, 1.0, 2.0, 3.0}
     assert drawn == [sim.reset(s)[1].extra["human_goal"] for s in range(20)], "per seed"
+    for s in range(20):  # the truth names the drawn goal's position too (metrics, issue #18)
+        extra = sim.reset(s)[1].extra
+        assert [extra["human_goal_x_m"], extra["human_goal_y_m"]] == goals[int(extra["human_goal"])]
     seed = drawn.index(2.0)
     _, steps = run(sim, [0.0, 0.0], 3000, seed=seed)
     assert steps[-1][0].position == pytest.approx([-0.1, 0.0], abs=1e-4), "the drawn goal"
@@ -297,8 +300,8 @@ def test_same_seed_same_trajectory_and_extra_keys() -> None:
     assert np.array_equal(a, b), "same seed, identical trajectory"
     assert not np.allclose(a, traj(4)[0]), "different seeds differ"
     expected = BASE_EXTRA | {
-        "wall_offset_m", "human_goal", "human_fx_N", "human_fy_N",
-        "disturbance_fx_N", "disturbance_fy_N",
+        "wall_offset_m", "human_goal", "human_goal_x_m", "human_goal_y_m", "human_fx_N",
+        "human_fy_N", "disturbance_fx_N", "disturbance_fy_N",
     }  # fmt: skip
     assert all(k == expected for k in keys), "the same extra keys on every step"
 

@@ -83,6 +83,11 @@ class HumanHand:
         self._nx = self._ny = 0.0
         self._rng: np.random.Generator | None = None
 
+    @property
+    def goal(self) -> tuple[float, float]:
+        """The active goal's position [m] (truth: metrics only)."""
+        return float(self._gx), float(self._gy)
+
     def reset(self, rng: np.random.Generator) -> None:
         """Draw the goal (if random) and the noise's initial state."""
         self._rng = rng
@@ -210,8 +215,9 @@ class HRIForces:
         """Truth for ``StepInfo.extra``: keys only for the elements the scene has.
 
         ``wall_offset_m`` (first wall's offset this episode), ``human_goal`` (goal index),
-        ``human_fx_N``/``human_fy_N`` and ``disturbance_fx_N``/``disturbance_fy_N`` (means
-        over the physics steps of the last control step; 0 right after reset).
+        ``human_goal_x_m``/``human_goal_y_m`` (that goal's position), ``human_fx_N``/
+        ``human_fy_N`` and ``disturbance_fx_N``/``disturbance_fy_N`` (means over the physics
+        steps of the last control step; 0 right after reset).
         """
         out: dict[str, float] = {}
         k = 1.0 / self._count if self._count else 0.0
@@ -219,6 +225,7 @@ class HRIForces:
             out["wall_offset_m"] = self.walls.offsets[0]
         if self.human is not None:
             out["human_goal"] = float(self.human.goal_index)
+            out["human_goal_x_m"], out["human_goal_y_m"] = self.human.goal
             out["human_fx_N"] = self._sums[0] * k
             out["human_fy_N"] = self._sums[1] * k
         if self.vibration is not None:

@@ -32,8 +32,9 @@ Modelling choices:
   plus white noise, optionally inside a region). Their random draws come from a generator of
   their own, ``default_rng([seed, 7])``, made at reset only for scenes that have them, so the
   sensor's stream and every other scene are unchanged. Their truth is in ``extra``:
-  ``wall_offset_m``, ``human_goal``, ``human_fx_N``, ``human_fy_N``, ``disturbance_fx_N``,
-  ``disturbance_fy_N`` (keys present only for the elements the scene has).
+  ``wall_offset_m``, ``human_goal``, ``human_goal_x_m``, ``human_goal_y_m``, ``human_fx_N``,
+  ``human_fy_N``, ``disturbance_fx_N``, ``disturbance_fy_N`` (keys present only for the
+  elements the scene has).
 """
 
 from __future__ import annotations
