@@ -14,12 +14,14 @@ seeds):
 * ``ratio_at_most``: ``a / b <= value``;
 * ``at_most`` / ``at_least``: ``a <= value`` / ``a >= value``;
 * ``difference_at_most``: ``a − b <= value`` (e.g. a time cost in seconds);
-* ``within``: ``|a − value| <= tolerance · |value|`` (``tolerance`` a fraction, e.g. 0.15).
+* ``within``: ``|a − value| <= tolerance · |value|`` (``tolerance`` a fraction, e.g. 0.15);
+* ``ratio_within``: ``|a / b − 1| <= tolerance`` (two values equal up to a fraction: "unchanged").
 
 Verdict over n seeds, from d = the per-seed margin (``b − a``, ``value − a/b``,
-``value − a``, ``a − value``, ``value − (a − b)`` or ``tolerance · |value| − |a − value|``;
-positive when the claim holds; ≥ 0 suffices for the bounds ``at_most``, ``at_least``,
-``difference_at_most`` and ``within``, which hold at equality): :func:`ccm.claim_stats.decide`,
+``value − a``, ``a − value``, ``value − (a − b)``, ``tolerance · |value| − |a − value|`` or
+``tolerance − |a / b − 1|``; positive when the claim holds; ≥ 0 suffices for the bounds
+``at_most``, ``at_least``, ``difference_at_most``, ``within`` and ``ratio_within``, which hold
+at equality): :func:`ccm.claim_stats.decide`,
 the 95 % t-interval of the mean margin, or a sign test where the margins are clearly not
 normal; the report says which rule decided. A reference may take the metric's magnitude
 (``abs: true``: a signed error against a bound). Every run of the claim's experiment must be
@@ -29,7 +31,10 @@ shows both values next to the ratio or difference.
 
 A claim about a mechanism may name ``requires``: references with bounds
 (``{condition, metric, at_least, at_most}``) that show the mechanism acting in a run, e.g.
-AVIC's stiffness moving at all (``stiffness_active_frac``). ``task`` restricts a claim to the
+AVIC's stiffness moving at all (``stiffness_active_frac``). A requirement with
+``changed_from: {condition, metric}`` bounds the relative change ``|a / b − 1|`` of its value
+against that reference instead (e.g. a cost term that must move the impedance by ≥ 5 %, in
+either direction, before "unchanged" can mean anything). ``task`` restricts a claim to the
 runs of one task of a sweep over tasks. A run that misses a requirement
 does not count as holding; if no run meets the requirements the claim is **not reproduced**,
 and if only some do, a *reproduced* verdict becomes **partially**.
@@ -48,13 +53,14 @@ import numpy as np
 from ccm.claim_stats import decide, mean_ci
 from ccm.errors import ConfigError, check_keys
 
-COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least", "difference_at_most", "within")
-_TWO_REFS = ("less_than", "ratio_at_most", "difference_at_most")
+COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least", "difference_at_most", "within",
+               "ratio_within")  # fmt: skip
+_TWO_REFS = ("less_than", "ratio_at_most", "difference_at_most", "ratio_within")
 _CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment", "compare",
                "a", "b", "value", "tolerance", "figures", "note", "discussion", "requires",
                "task")  # fmt: skip
 _REF_KEYS = ("condition", "metric", "trial", "abs")
-_REQ_KEYS = (*_REF_KEYS, "at_least", "at_most")
+_REQ_KEYS = (*_REF_KEYS, "at_least", "at_most", "changed_from")
 
 
 @dataclass(frozen=True)
@@ -93,15 +99,22 @@ class Requirement:
     ref: Ref
     at_least: float = -math.inf
     at_most: float = math.inf
+    changed_from: Ref | None = None  # bound |ref / changed_from − 1| instead of ref
 
     def met(self, summary: Mapping[str, Any]) -> bool:
         v = self.ref.value(summary)
+        if v is not None and self.changed_from is not None:
+            b = self.changed_from.value(summary)
+            v = None if b is None or b == 0.0 else abs(v / b - 1.0)
         return v is not None and self.at_least <= v <= self.at_most
 
     def __str__(self) -> str:
         lo = "" if math.isinf(self.at_least) else f"{self.at_least:g} <= "
         hi = "" if math.isinf(self.at_most) else f" <= {self.at_most:g}"
-        return f"{lo}{self.ref}{hi}"
+        what = str(self.ref)
+        if self.changed_from is not None:
+            what = f"|{self.ref} / {self.changed_from} − 1|"
+        return f"{lo}{what}{hi}"
 
 
 @dataclass(frozen=True)
@@ -118,7 +131,7 @@ class Claim:
     a: Ref
     b: Ref | None = None
     value: float | None = None
-    tolerance: float | None = None  # ``within`` only: a fraction of |value|
+    tolerance: float | None = None  # ``within``: a fraction of |value|; ``ratio_within``: of 1
     figures: tuple[str, ...] = ()
     note: str = ""
     discussion: str = ""  # the protocol note that discusses the outcome (experiments/*.md)
@@ -168,7 +181,9 @@ def _requirement(key: str, d: Any) -> Requirement:
     if not bounds:
         raise ConfigError(key, "needs at_least and/or at_most")
     ref = _ref(key, {k: v for k, v in d.items() if k in _REF_KEYS})
-    return Requirement(ref, **bounds)
+    base = d.get("changed_from")
+    base_ref = None if base is None else _ref(f"{key}.changed_from", base)
+    return Requirement(ref, changed_from=base_ref, **bounds)
 
 
 def parse_claim(d: Any, key: str) -> Claim:
@@ -187,21 +202,23 @@ def parse_claim(d: Any, key: str) -> Claim:
     a = _ref(f"{key}.a", d.get("a"))
     b = _ref(f"{key}.b", d.get("b")) if compare in _TWO_REFS else None
     value = None
-    if compare != "less_than":
+    if compare not in ("less_than", "ratio_within"):
         v = d.get("value")
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise ConfigError(f"{key}.value", f"a finite number is required for {compare}")
         value = float(v)
     tolerance = None
-    if compare == "within":
+    if compare in ("within", "ratio_within"):
         tol = d.get("tolerance")
         if isinstance(tol, bool) or not isinstance(tol, int | float) or not 0 < tol < math.inf:
             raise ConfigError(
-                f"{key}.tolerance", f"a fraction > 0 is required for within, got {tol!r}"
+                f"{key}.tolerance", f"a fraction > 0 is required for {compare}, got {tol!r}"
             )
         tolerance = float(tol)
     elif d.get("tolerance") is not None:
-        raise ConfigError(f"{key}.tolerance", f"is only used with compare: within, not {compare}")
+        raise ConfigError(
+            f"{key}.tolerance", f"is only used with compare: within or ratio_within, not {compare}"
+        )
     figures = d.get("figures") or []
     if not isinstance(figures, list) or not all(isinstance(f, str) for f in figures):
         raise ConfigError(f"{key}.figures", "must be a list of figure file names")
@@ -263,6 +280,9 @@ def _margin(c: Claim, s: Mapping[str, Any]) -> tuple[float, float] | None:
         return a - b, c.value - (a - b)
     if b == 0.0:
         return None
+    if c.compare == "ratio_within":
+        assert c.tolerance is not None
+        return a / b, c.tolerance - abs(a / b - 1.0)
     assert c.value is not None
     return a / b, c.value - a / b
 
@@ -326,6 +346,7 @@ def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
         "less_than": f"{claim.a} − {claim.b}",
         "difference_at_most": f"{claim.a} − {claim.b}",
         "ratio_at_most": f"{claim.a} / {claim.b}",
+        "ratio_within": f"{claim.a} / {claim.b}",
     }
     label = what.get(claim.compare, str(claim.a))
     n = len(margins)
