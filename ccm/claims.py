@@ -31,7 +31,10 @@ shows both values next to the ratio or difference.
 
 A claim about a mechanism may name ``requires``: references with bounds
 (``{condition, metric, at_least, at_most}``) that show the mechanism acting in a run, e.g.
-AVIC's stiffness moving at all (``stiffness_active_frac``). ``task`` restricts a claim to the
+AVIC's stiffness moving at all (``stiffness_active_frac``). A requirement with
+``changed_from: {condition, metric}`` bounds the relative change ``|a / b − 1|`` of its value
+against that reference instead (e.g. a cost term that must move the impedance by ≥ 5 %, in
+either direction, before "unchanged" can mean anything). ``task`` restricts a claim to the
 runs of one task of a sweep over tasks. A run that misses a requirement
 does not count as holding; if no run meets the requirements the claim is **not reproduced**,
 and if only some do, a *reproduced* verdict becomes **partially**.
@@ -60,7 +63,7 @@ _CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment"
                "a", "b", "value", "tolerance", "figures", "note", "discussion", "requires",
                "task")  # fmt: skip
 _REF_KEYS = ("condition", "metric", "trial", "abs")
-_REQ_KEYS = (*_REF_KEYS, "at_least", "at_most")
+_REQ_KEYS = (*_REF_KEYS, "at_least", "at_most", "changed_from")
 
 
 @dataclass(frozen=True)
@@ -99,15 +102,22 @@ class Requirement:
     ref: Ref
     at_least: float = -math.inf
     at_most: float = math.inf
+    changed_from: Ref | None = None  # bound |ref / changed_from − 1| instead of ref
 
     def met(self, summary: Mapping[str, Any]) -> bool:
         v = self.ref.value(summary)
+        if v is not None and self.changed_from is not None:
+            b = self.changed_from.value(summary)
+            v = None if b is None or b == 0.0 else abs(v / b - 1.0)
         return v is not None and self.at_least <= v <= self.at_most
 
     def __str__(self) -> str:
         lo = "" if math.isinf(self.at_least) else f"{self.at_least:g} <= "
         hi = "" if math.isinf(self.at_most) else f" <= {self.at_most:g}"
-        return f"{lo}{self.ref}{hi}"
+        what = str(self.ref)
+        if self.changed_from is not None:
+            what = f"|{self.ref} / {self.changed_from} − 1|"
+        return f"{lo}{what}{hi}"
 
 
 @dataclass(frozen=True)
@@ -174,7 +184,9 @@ def _requirement(key: str, d: Any) -> Requirement:
     if not bounds:
         raise ConfigError(key, "needs at_least and/or at_most")
     ref = _ref(key, {k: v for k, v in d.items() if k in _REF_KEYS})
-    return Requirement(ref, **bounds)
+    base = d.get("changed_from")
+    base_ref = None if base is None else _ref(f"{key}.changed_from", base)
+    return Requirement(ref, changed_from=base_ref, **bounds)
 
 
 def parse_claim(d: Any, key: str) -> Claim:

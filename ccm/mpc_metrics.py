@@ -5,7 +5,8 @@ Inputs: the log columns ``t``, ``vel_*`` (measured velocity), ``contact_force_*`
 and ``belief_<n>`` (:class:`ccm.control.gp_mpc.GPMPC`), the truth ``truth_human_goal`` of a
 simulated human, and ``controller_report`` (solve counts). Parameters (``cfg.metrics``):
 ``contact_loss_min_s``, ``oscillation_highpass_hz``, ``vel_split_hz``, ``belief_level``,
-``varied_axis``, ``repeatable_axis``, ``press_force_N``, ``press_tol_N``, ``press_hold_s``.
+``varied_axis``, ``repeatable_axis``, ``press_force_N``, ``press_tol_N``, ``press_hold_s``,
+``human_shoulder``, ``far_from_human_m``.
 
 Definitions (dt = the log's median step):
 
@@ -24,8 +25,16 @@ Definitions (dt = the log's median step):
 * ``mpc_solves``, ``mpc_infeasible``: MPC solves and unsuccessful solves of the trial.
 * ``rms_vel_low_mps``, ``rms_vel_high_mps``: RMS of the velocity (all axes) below / above
   ``vel_split_hz`` (seed B Table 3: 15 Hz), by an FFT mask on the whole trial.
-* ``mean_damping_<axis>_Nspm`` and ``damping_ratio_varied_repeatable``: the mean rendered
-  damping per axis and the ratio varied / repeatable axis (seed B Fig. 8).
+* ``mean_damping_<axis>_Nspm``, ``mean_mass_<axis>_kg`` and ``damping_ratio_varied_repeatable``:
+  the mean rendered damping and mass per axis (seed B Fig. 9: across the polishing path) and
+  the damping ratio varied / repeatable axis (seed B Fig. 8).
+* ``mean_damping_far_Nspm`` and ``far_from_human_frac`` (only when ``human_shoulder`` is set,
+  seed B §6.3, Fig. 9c): the rendered damping, averaged over the axes and over the samples whose
+  tool point (z = 0 in a planar task) lies at least ``far_from_human_m`` from the human's
+  shoulder ``human_shoulder`` ([x, y, z] m), and the fraction of such samples; the damping is
+  None when there are none.
+* ``disturbance_alpha_N``: α of Eq. 16 as the controller estimated it from its demonstrations
+  (``controller_report``; only when it estimated one).
 * ``belief_correct_final``: 1.0 if the final belief's largest entry is the human's goal;
   ``time_to_belief_s``: the first time the belief in the true goal reaches ``belief_level``
   (None if never; seed B Fig. 11).
@@ -43,22 +52,9 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import check_finite, check_nonneg, check_positive
+from ccm.errors import ConfigError, check_finite, check_nonneg, check_positive
+from ccm.filters import fft_split as _split
 from ccm.records import AXES
-
-
-def _split(x: np.ndarray, dt: float, f_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Zero-phase split of ``x`` into the parts below and above ``f_hz`` (FFT mask).
-
-    The signal is mirrored before the FFT (even extension), so its two ends do not meet in a
-    jump that the mask would turn into ringing (a press ending at 15 N next to a start at
-    0 N)."""
-    n = len(x)
-    ext = np.concatenate([x, x[::-1]])
-    spec = np.fft.rfft(ext)
-    freqs = np.fft.rfftfreq(2 * n, dt)
-    low = np.fft.irfft(np.where(freqs < f_hz, spec, 0.0), n=2 * n)[:n]
-    return low, x - low
 
 
 def _rms(x: np.ndarray) -> float:
@@ -79,6 +75,26 @@ def _press_settle_time(
     k = np.arange(int(np.argmax(touching)), len(fc) - n)  # candidate t_s steps
     ok = k[bad[k + n + 1] == bad[k]]
     return float(t[ok[0]]) if ok.size else None
+
+
+def _far_from_human(
+    log: Mapping[str, np.ndarray], ax: tuple[str, ...], damp: Mapping[str, Any], params: Mapping
+) -> dict[str, float | None]:
+    """``mean_damping_far_Nspm`` and ``far_from_human_frac`` of the module docstring."""
+    shoulder = np.asarray(params["human_shoulder"], dtype=float)
+    if shoulder.shape != (3,) or not np.all(np.isfinite(shoulder)):
+        raise ConfigError("metrics.human_shoulder", f"must be [x, y, z] in m, got {shoulder}")
+    far = check_positive("metrics.far_from_human_m", params.get("far_from_human_m"))
+    pos = np.column_stack([log[f"pos_{a}"] for a in ax])
+    pos = np.column_stack([pos, np.zeros((len(pos), 3 - len(ax)))])
+    is_far = np.linalg.norm(pos - shoulder, axis=1) >= far
+    if any(d is None for d in damp.values()):
+        return {"mean_damping_far_Nspm": None, "far_from_human_frac": float(np.mean(is_far))}
+    d_mean = np.mean(np.column_stack([damp[a] for a in ax]), axis=1)
+    return {
+        "mean_damping_far_Nspm": float(np.mean(d_mean[is_far])) if is_far.any() else None,
+        "far_from_human_frac": float(np.mean(is_far)),
+    }
 
 
 def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]) -> dict:
@@ -114,6 +130,12 @@ def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str,
     for a, d in damp.items():
         if d is not None:
             out[f"mean_damping_{a}_Nspm"] = float(np.mean(d))
+        if f"mass_{a}_kg" in log:
+            out[f"mean_mass_{a}_kg"] = float(np.mean(log[f"mass_{a}_kg"]))
+    if params.get("human_shoulder") is not None:
+        out.update(_far_from_human(log, ax, damp, params))
+    if rep.get("disturbance_alpha") is not None:
+        out["disturbance_alpha_N"] = float(rep["disturbance_alpha"])
     va, ra = params.get("varied_axis"), params.get("repeatable_axis")
     if va in damp and ra in damp and damp[va] is not None and damp[ra] is not None:
         out["damping_ratio_varied_repeatable"] = float(np.mean(damp[va]) / np.mean(damp[ra]))

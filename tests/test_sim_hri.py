@@ -409,3 +409,20 @@ def test_dictconfig_scene_parses() -> None:
     scene = SceneSpec.from_mapping(cfg.task.scene)
     assert scene.has_hri and scene.human is not None and scene.human.goal_index == -1
     assert scene.vibration is not None and scene.vibration.amplitude == (0.5, 0.5)
+
+
+def test_human_ramp_raises_the_force_smoothly() -> None:
+    """ramp_s: raised-cosine onset after active_after_s (0 at its start, half way at its middle,
+    full and still saturated afterwards); ramp_s = 0 is the step."""
+    spec = HumanSpec(goals=((1.0, 0.0),), stiffness=100.0, max_force=0.3, active_after_s=0.1,
+                     ramp_s=0.2)  # fmt: skip
+    hand = HumanHand(spec, DT)
+    hand.reset(np.random.default_rng(0))
+    fx = [hand.force(0.0, 0.0, 0.0, 0.0, t)[0] for t in (0.05, 0.1, 0.2, 0.3, 0.5)]
+    assert fx == pytest.approx([0.0, 0.0, 0.15, 0.3, 0.3])
+    step = HumanHand(HumanSpec(goals=((1.0, 0.0),), stiffness=100.0, max_force=0.3), DT)
+    step.reset(np.random.default_rng(0))
+    assert step.force(0.0, 0.0, 0.0, 0.0, 0.0)[0] == pytest.approx(0.3)
+    with pytest.raises(ConfigError, match="human.ramp_s"):
+        HumanSpec.from_mapping({"goals": [[1.0, 0.0]], "stiffness": 1.0, "max_force": 1.0,
+                                "ramp_s": -1.0}, "human")  # fmt: skip

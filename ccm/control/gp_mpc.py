@@ -7,6 +7,8 @@ Life cycle over the trials of a condition (seed B §3.1.1, §6):
    ``demo_f_ref``) while the simulated human (or the constant ``demo_f_ref`` alone: an
    autonomous demonstration, seed B §5.3) moves it. Pose and *measured* force are recorded;
    ``demo_modes[i]`` is the mode (human goal) the teacher demonstrated in demo i.
+   With ``mpc.disturbance.alpha: demonstrations`` the measured force of every demonstration
+   is also kept at the control rate, for α of Eq. 16 (:mod:`ccm.control.disturbance_estimate`).
 2. After the last demonstration, one set of GP force models per mode is fitted by NLL
    (:class:`ccm.learn.gp_force.GPForceModels`, Eq. 1-3) and the MPC problem of Eq. 13 is
    built once (:class:`ccm.control.gp_mpc_problem.GPMPCProblem`).
@@ -97,6 +99,8 @@ class GPMPC(Controller):
             "init_mass": init_mass, "init_damping": init_damping, "init_f_ref": init_f_ref,
             "demo_mass": demo_mass, "demo_damping": demo_damping, "demo_f_ref": demo_f_ref,
         }  # fmt: skip
+        self._alpha_from_demos = False  # mpc.disturbance.alpha: demonstrations (_check_alpha)
+        self._split_hz = 15.0
         if isinstance(mpc, bool):
             self.mpc_cfg: dict[str, Any] | None = {} if mpc else None
         elif isinstance(mpc, Mapping):
@@ -104,6 +108,7 @@ class GPMPC(Controller):
             from ccm.control.gp_mpc_problem import check_settings
 
             check_settings(self.mpc_cfg, f"{key}.mpc")
+            self._check_alpha()
         else:
             raise ConfigError(f"{key}.mpc", "must be a mapping of MPC settings or false")
         self.mpc_period_s = check_positive(f"{key}.mpc_period_s", mpc_period_s)
@@ -120,12 +125,26 @@ class GPMPC(Controller):
         self.min_belief = check_nonneg(f"{key}.min_belief", min_belief)
         self.force_delay_s = check_nonneg(f"{key}.force_delay_s", force_delay_s)
         self._data: list[list[np.ndarray]] = [[] for _ in range(self.n_modes)]  # rows [x, f]
+        self._demo_force: list[np.ndarray] = []  # this demonstration's measured force (α only)
+        self._hf_power: list[np.ndarray] = []  # per demonstration: force power above ω_p
+        self.disturbance_alpha: float | None = None  # α̂ of Eq. 16 once estimated
         self._trials_done = 0
         self._problem: Any = None
         self._needs_fit = False  # set by load_learned_state; fitted at the next reset
         self.infeasible_total = 0
         self._timing: list[float] = []
         self.dim = 0
+
+    def _check_alpha(self) -> None:
+        """``mpc.disturbance.alpha``: a number > 0, or ``demonstrations`` (estimated)."""
+        dist = (self.mpc_cfg or {}).get("disturbance") or {}
+        alpha = dist.get("alpha", 1.0)
+        self._alpha_from_demos = alpha == "demonstrations"
+        if not self._alpha_from_demos:
+            check_positive(f"{self.key}.mpc.disturbance.alpha", alpha)
+        self._split_hz = check_positive(
+            f"{self.key}.mpc.disturbance.omega_p", dist.get("omega_p", 2 * np.pi * 15)
+        ) / (2 * np.pi)
 
     # ---------------------------------------------------------------- life cycle
     @property
@@ -171,6 +190,12 @@ class GPMPC(Controller):
 
     def end_trial(self) -> None:
         was_demo = self.demonstrating
+        if was_demo and self._alpha_from_demos and len(self._demo_force) > 1:
+            from ccm.control.disturbance_estimate import high_freq_power
+
+            f = np.asarray(self._demo_force)
+            self._hf_power.append(high_freq_power(f, self.control_dt, self._split_hz))
+        self._demo_force = []
         self._trials_done += 1
         if was_demo and not self.demonstrating:
             self._fit()
@@ -191,6 +216,11 @@ class GPMPC(Controller):
             gps.fit(data[idx, : self.dim], data[idx, self.dim :])
             self.models.append(gps)
         cfg = dict(self.mpc_cfg or {})
+        if self._alpha_from_demos:  # α of Eq. 16 from the measured force
+            from ccm.control.disturbance_estimate import alpha_from_power
+
+            self.disturbance_alpha = alpha_from_power(self._hf_power)
+            cfg["disturbance"] = {**cfg["disturbance"], "alpha": self.disturbance_alpha}
         weights = Weights(**(cfg.pop("weights", None) or {}))  # keys checked in __init__
         self._problem = GPMPCProblem(
             [g.casadi_functions() for g in self.models], self.dim, weights=weights,
@@ -206,6 +236,8 @@ class GPMPC(Controller):
             self._v_ref = obs.lin_vel.copy()
             self._theta0 = float(obs.orientation[0]) if obs.orientation.size == 1 else 0.0
         if self.demonstrating:
+            if self._alpha_from_demos:
+                self._demo_force.append(obs.force.copy())
             if self._step_count % self.record_every == 0:
                 mode = self.demo_modes[self._trials_done]
                 self._data[mode].append(np.concatenate([obs.position, obs.force]))
@@ -277,27 +309,31 @@ class GPMPC(Controller):
             "mpc_infeasible": getattr(self, "infeasible", 0),
             "demonstration": self.demonstrating,
             "belief": getattr(self, "belief", np.ones(1)).tolist(),
+            "disturbance_alpha": self.disturbance_alpha,
             "timing": {"mpc_solve_s": list(self._timing)},
         }
 
     def learned_state(self) -> dict[str, Any] | None:
-        """The demonstration data per mode and the number of trials done (JSON; the GPs are
-        refitted deterministically from it on load)."""
+        """The demonstration data per mode, the per-demonstration high-frequency force power
+        (α of Eq. 16) and the number of trials done (JSON; the GPs are refitted
+        deterministically from it on load)."""
         return {
             "trials_done": self._trials_done,
             "data": [np.asarray(rows).tolist() for rows in self._data],
+            "hf_power": [np.asarray(p).tolist() for p in self._hf_power],
         }
 
     def load_learned_state(self, state: Mapping[str, Any]) -> None:
         try:
             data = [[np.asarray(r, dtype=float) for r in rows] for rows in state["data"]]
             done = int(state["trials_done"])
+            hf_power = [np.asarray(p, dtype=float) for p in state.get("hf_power", [])]
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigError(f"{self.key}.learned_state", f"malformed: {exc}") from None
         if len(data) != self.n_modes:
             raise ConfigError(
                 f"{self.key}.learned_state", f"has {len(data)} modes, expected {self.n_modes}"
             )
-        self._data, self._trials_done = data, done
+        self._data, self._trials_done, self._hf_power = data, done, hf_power
         self._problem = None
         self._needs_fit = self.mpc_cfg is not None and done >= len(self.demo_modes)

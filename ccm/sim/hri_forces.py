@@ -112,10 +112,11 @@ class HumanHand:
         fx = spec.stiffness * (self._gx - x) - spec.damping * vx + self._nx
         fy = spec.stiffness * (self._gy - y) - spec.damping * vy + self._ny
         norm = math.hypot(fx, fy)
-        if norm > spec.max_force:
-            s = spec.max_force / norm
-            fx, fy = fx * s, fy * s
-        return fx, fy
+        s = spec.max_force / norm if norm > spec.max_force else 1.0
+        rise = t - spec.active_after_s
+        if rise < spec.ramp_s:  # raised-cosine onset (HumanSpec)
+            s *= 0.5 * (1.0 - math.cos(math.pi * rise / spec.ramp_s))
+        return fx * s, fy * s
 
 
 class Vibration:

@@ -96,7 +96,9 @@ class HumanSpec:
     and ``v`` the EE centre's position and velocity, ``n(t)`` a low-frequency noise (per axis,
     white Gaussian through a first-order low-pass at ``noise_cutoff_hz``, stationary std
     ``noise_std``) and ``sat`` scaling the vector down to norm ``max_force``. ``F = 0`` for
-    ``t < active_after_s``.
+    ``t < active_after_s``; over the next ``ramp_s`` it is scaled by the raised cosine
+    ``(1 - cos(pi (t - active_after_s) / ramp_s)) / 2`` (a human's force builds up over a
+    few hundred ms, it does not step).
 
     Attributes:
         goals: candidate goals ``[[x, y], ...]`` [m], at least one (seed B §4.1: discrete
@@ -107,6 +109,7 @@ class HumanSpec:
         noise_std: stationary std of the noise per axis [N] >= 0 (default 0).
         noise_cutoff_hz: cut-off of the noise low-pass [Hz] > 0 (default 5.0).
         active_after_s: the hand force is zero before this time [s] >= 0 (default 0).
+        ramp_s: rise time of the force after ``active_after_s`` [s] >= 0 (default 0: a step).
     """
 
     goals: tuple[Vec2, ...]
@@ -117,6 +120,7 @@ class HumanSpec:
     noise_std: float = 0.0
     noise_cutoff_hz: float = 5.0
     active_after_s: float = 0.0
+    ramp_s: float = 0.0
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> HumanSpec:
@@ -125,7 +129,7 @@ class HumanSpec:
         d = as_plain(cfg, key)
         check_keys(key, d, (
             "goals", "goal_index", "stiffness", "damping", "max_force", "noise_std",
-            "noise_cutoff_hz", "active_after_s",
+            "noise_cutoff_hz", "active_after_s", "ramp_s",
         ))  # fmt: skip
         _require(key, d, ("goals", "stiffness", "max_force"))
         goals = tuple(
@@ -150,6 +154,7 @@ class HumanSpec:
                 f"{key}.noise_cutoff_hz", d.get("noise_cutoff_hz", cls.noise_cutoff_hz)
             ),
             active_after_s=check_nonneg(f"{key}.active_after_s", d.get("active_after_s", 0.0)),
+            ramp_s=check_nonneg(f"{key}.ramp_s", d.get("ramp_s", 0.0)),
         )
 
 
