@@ -14,12 +14,15 @@ seeds):
 * ``ratio_at_most``: ``a / b <= value``;
 * ``at_most`` / ``at_least``: ``a <= value`` / ``a >= value``;
 * ``difference_at_most``: ``a − b <= value`` (e.g. a time cost in seconds);
-* ``within``: ``|a − value| <= tolerance · |value|`` (``tolerance`` a fraction, e.g. 0.15).
+* ``within``: ``|a − value| <= tolerance · |value|`` (``tolerance`` a fraction, e.g. 0.15);
+* ``ratio_within``: ``|a / b − value| <= tolerance · |value|`` (a paper's ratio, e.g. seed B
+  Table 2's MPC rates relative to the baseline's).
 
 Verdict over n seeds, from d = the per-seed margin (``b − a``, ``value − a/b``,
-``value − a``, ``a − value``, ``value − (a − b)`` or ``tolerance · |value| − |a − value|``;
-positive when the claim holds; ≥ 0 suffices for the bounds ``at_most``, ``at_least``,
-``difference_at_most`` and ``within``, which hold at equality): :func:`ccm.claim_stats.decide`,
+``value − a``, ``a − value``, ``value − (a − b)``, ``tolerance · |value| − |a − value|`` or
+``tolerance · |value| − |a / b − value|``; positive when the claim holds; ≥ 0 suffices for the
+bounds ``at_most``, ``at_least``, ``difference_at_most``, ``within`` and ``ratio_within``, which
+hold at equality): :func:`ccm.claim_stats.decide`,
 the 95 % t-interval of the mean margin, or a sign test where the margins are clearly not
 normal; the report says which rule decided. A reference may take the metric's magnitude
 (``abs: true``: a signed error against a bound). Every run of the claim's experiment must be
@@ -48,8 +51,10 @@ import numpy as np
 from ccm.claim_stats import decide, mean_ci
 from ccm.errors import ConfigError, check_keys
 
-COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least", "difference_at_most", "within")
-_TWO_REFS = ("less_than", "ratio_at_most", "difference_at_most")
+COMPARISONS = ("less_than", "ratio_at_most", "at_most", "at_least", "difference_at_most", "within",
+               "ratio_within")  # fmt: skip
+_TWO_REFS = ("less_than", "ratio_at_most", "difference_at_most", "ratio_within")
+_TOLERANCE = ("within", "ratio_within")  # comparisons that take a tolerance
 _CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment", "compare",
                "a", "b", "value", "tolerance", "figures", "note", "discussion", "requires",
                "task")  # fmt: skip
@@ -118,7 +123,7 @@ class Claim:
     a: Ref
     b: Ref | None = None
     value: float | None = None
-    tolerance: float | None = None  # ``within`` only: a fraction of |value|
+    tolerance: float | None = None  # ``within`` / ``ratio_within`` only: a fraction of |value|
     figures: tuple[str, ...] = ()
     note: str = ""
     discussion: str = ""  # the protocol note that discusses the outcome (experiments/*.md)
@@ -193,15 +198,17 @@ def parse_claim(d: Any, key: str) -> Claim:
             raise ConfigError(f"{key}.value", f"a finite number is required for {compare}")
         value = float(v)
     tolerance = None
-    if compare == "within":
+    if compare in _TOLERANCE:
         tol = d.get("tolerance")
         if isinstance(tol, bool) or not isinstance(tol, int | float) or not 0 < tol < math.inf:
             raise ConfigError(
-                f"{key}.tolerance", f"a fraction > 0 is required for within, got {tol!r}"
+                f"{key}.tolerance", f"a fraction > 0 is required for {compare}, got {tol!r}"
             )
         tolerance = float(tol)
     elif d.get("tolerance") is not None:
-        raise ConfigError(f"{key}.tolerance", f"is only used with compare: within, not {compare}")
+        raise ConfigError(
+            f"{key}.tolerance", f"is only used with compare: within or ratio_within, not {compare}"
+        )
     figures = d.get("figures") or []
     if not isinstance(figures, list) or not all(isinstance(f, str) for f in figures):
         raise ConfigError(f"{key}.figures", "must be a list of figure file names")
@@ -264,6 +271,9 @@ def _margin(c: Claim, s: Mapping[str, Any]) -> tuple[float, float] | None:
     if b == 0.0:
         return None
     assert c.value is not None
+    if c.compare == "ratio_within":
+        assert c.tolerance is not None
+        return a / b, c.tolerance * abs(c.value) - abs(a / b - c.value)
     return a / b, c.value - a / b
 
 
@@ -326,6 +336,7 @@ def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
         "less_than": f"{claim.a} − {claim.b}",
         "difference_at_most": f"{claim.a} − {claim.b}",
         "ratio_at_most": f"{claim.a} / {claim.b}",
+        "ratio_within": f"{claim.a} / {claim.b}",
     }
     label = what.get(claim.compare, str(claim.a))
     n = len(margins)

@@ -125,6 +125,7 @@ class GPMPC(Controller):
         self._needs_fit = False  # set by load_learned_state; fitted at the next reset
         self.infeasible_total = 0
         self._timing: list[float] = []
+        self._iterations: list[int] = []
         self.dim = 0
 
     # ---------------------------------------------------------------- life cycle
@@ -166,6 +167,7 @@ class GPMPC(Controller):
         self.infeasible = 0
         self.solves = 0
         self._timing = []
+        self._iterations = []
         if self._problem is not None:
             self._problem.reset_warm_start()
 
@@ -248,6 +250,7 @@ class GPMPC(Controller):
         t0 = time.perf_counter()
         sol = self._problem.solve(xi, self.belief, self.mass, self.damping, self.f_ref)
         self._timing.append(time.perf_counter() - t0)
+        self._iterations.append(sol.iterations)
         self.solves += 1
         if sol.success:
             self.f_ref, self.mass, self.damping = sol.f_ref, sol.mass, sol.damping
@@ -277,7 +280,7 @@ class GPMPC(Controller):
             "mpc_infeasible": getattr(self, "infeasible", 0),
             "demonstration": self.demonstrating,
             "belief": getattr(self, "belief", np.ones(1)).tolist(),
-            "timing": {"mpc_solve_s": list(self._timing)},
+            "timing": {"mpc_solve_s": list(self._timing), "mpc_iterations": list(self._iterations)},
         }
 
     def learned_state(self) -> dict[str, Any] | None:
