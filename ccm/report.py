@@ -1,10 +1,10 @@
 """``ccm report DIR``: aggregate the runs under DIR into report.md and report.html (issue #8).
 
 DIR is one run directory or a multirun tree: every ``summary.json`` below it is read. The
-run's wall-clock MPC facts (``run_info.json``: ``mpc_rate_hz``, ``mpc_iterations_median``,
-``mpc_ms_per_iteration`` per condition) join its conditions as metrics of the same names, so
-a claim can compare rates measured in one process (seed B Table 2); summary.json itself stays
-free of wall-clock values (it must be identical run to run).
+run's timing facts (``run_info.json``: ``mpc_rate_hz``, ``mpc_cpu_rate_hz``,
+``mpc_iterations_median``, ``mpc_ms_per_iteration`` per condition) join its conditions as
+metrics of the same names, so a claim can compare rates measured in one process (seed B
+Table 2); summary.json itself stays free of them (it must be identical run to run).
 
 * **Claims** (``experiments/claims.yaml``, :mod:`ccm.claims`): for each claim whose experiment
   has runs under DIR, the paper's value, ours (mean ± 95 % CI over the seeds found) and the
@@ -58,7 +58,9 @@ def collect(root: Path) -> list[tuple[Path, dict[str, Any]]]:
     return sorted(runs, key=lambda r: str(r[0]))
 
 
-RUN_INFO_METRICS = ("mpc_rate_hz", "mpc_iterations_median", "mpc_ms_per_iteration")
+RUN_INFO_METRICS = (
+    "mpc_rate_hz", "mpc_cpu_rate_hz", "mpc_iterations_median", "mpc_ms_per_iteration",
+)  # fmt: skip
 
 
 def with_run_info(run: Path, summary: dict[str, Any]) -> dict[str, Any]:

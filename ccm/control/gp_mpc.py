@@ -126,6 +126,7 @@ class GPMPC(Controller):
         self.infeasible_total = 0
         self._timing: list[float] = []
         self._iterations: list[int] = []
+        self._cpu: list[float] = []  # process CPU time of each solve: robust to a shared machine
         self.dim = 0
 
     # ---------------------------------------------------------------- life cycle
@@ -168,6 +169,7 @@ class GPMPC(Controller):
         self.solves = 0
         self._timing = []
         self._iterations = []
+        self._cpu = []
         if self._problem is not None:
             self._problem.reset_warm_start()
 
@@ -247,9 +249,10 @@ class GPMPC(Controller):
                 self.belief, obs.force, means, variances + noise, min_belief=self.min_belief
             )
         xi = np.concatenate([obs.position, obs.lin_vel])
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         sol = self._problem.solve(xi, self.belief, self.mass, self.damping, self.f_ref)
         self._timing.append(time.perf_counter() - t0)
+        self._cpu.append(time.process_time() - c0)
         self._iterations.append(sol.iterations)
         self.solves += 1
         if sol.success:
@@ -280,7 +283,11 @@ class GPMPC(Controller):
             "mpc_infeasible": getattr(self, "infeasible", 0),
             "demonstration": self.demonstrating,
             "belief": getattr(self, "belief", np.ones(1)).tolist(),
-            "timing": {"mpc_solve_s": list(self._timing), "mpc_iterations": list(self._iterations)},
+            "timing": {
+                "mpc_solve_s": list(self._timing),
+                "mpc_solve_cpu_s": list(self._cpu),
+                "mpc_iterations": list(self._iterations),
+            },
         }
 
     def learned_state(self) -> dict[str, Any] | None:
