@@ -6,7 +6,7 @@ and ``belief_<n>`` (:class:`ccm.control.gp_mpc.GPMPC`), the truth ``truth_human_
 simulated human, and ``controller_report`` (solve counts). Parameters (``cfg.metrics``):
 ``contact_loss_min_s``, ``oscillation_highpass_hz``, ``vel_split_hz``, ``belief_level``,
 ``varied_axis``, ``repeatable_axis``, ``press_force_N``, ``press_tol_N``, ``press_hold_s``,
-``human_shoulder``, ``far_from_human_m``.
+``human_shoulder``, ``far_from_human_m``, ``approach_dir``, ``pause_speed_frac``.
 
 Definitions (dt = the log's median step):
 
@@ -22,6 +22,20 @@ Definitions (dt = the log's median step):
   whole span inside the log); None if never. Like ``completion_time_s`` it is measured from
   the trial's start. It depends on the contact force alone, so a controller that ignores the
   target pattern (GP-MPC) is timed the same way as one that follows it.
+* Approach metrics (only when ``approach_dir`` is set: the unit direction in which the tool
+  moves into contact, e.g. ``mpc_contact``'s +x). With p(t) = dir·(x(t) − x(0)) the progress
+  and v_a(t) = dir·v(t) the approach speed, over the *approach*: from the start to the first
+  contact (the whole trial if the tool never touches):
+
+  * ``approach_pullback_m``: the largest retreat max_t (max_{s≤t} p(s) − p(t)): how far the
+    tool pulled back from the farthest point it had reached ("the robot pulled back from the
+    contact approach", seed B §6.1); 0 for a monotone approach;
+  * ``pre_contact_dwell_s`` (None without contact): the time between the peak approach speed
+    and the first contact during which v_a is below ``pause_speed_frac`` × that peak ("the
+    well-damped constraint paused ... before making contact", seed B §6.1); 0 for an approach
+    that never slows down;
+  * ``damping_at_contact_Nspm`` (None without contact): the rendered damping along dir at the
+    first contact, dirᵀ diag(D) dir.
 * ``mpc_solves``, ``mpc_infeasible``: MPC solves and unsuccessful solves of the trial.
 * ``rms_vel_low_mps``, ``rms_vel_high_mps``: RMS of the velocity (all axes) below / above
   ``vel_split_hz`` (seed B Table 3: 15 Hz), by an FFT mask on the whole trial.
@@ -97,6 +111,45 @@ def _far_from_human(
     }
 
 
+def _approach_metrics(
+    log: Mapping[str, np.ndarray], dim: int, touching: np.ndarray, params: Mapping[str, Any]
+) -> dict[str, float | None]:
+    """``approach_pullback_m``, ``pre_contact_dwell_s`` and ``damping_at_contact_Nspm`` of the
+    module docstring (seed B §6.1's behaviour approaching contact)."""
+    ax = AXES[:dim]
+    raw = params["approach_dir"]
+    try:
+        d = np.asarray(list(raw), dtype=float)
+    except (TypeError, ValueError):
+        d = np.zeros(0)
+    if d.shape != (dim,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0.0:
+        raise ConfigError("metrics.approach_dir", f"must be a non-zero {dim}-vector, got {raw!r}")
+    d = d / np.linalg.norm(d)
+    frac = check_positive("metrics.pause_speed_frac", params.get("pause_speed_frac", 0.5))
+    pos = np.column_stack([log[f"pos_{a}"] for a in ax])
+    vel = np.column_stack([log[f"vel_{a}"] for a in ax])
+    n = int(np.argmax(touching)) if touching.any() else len(pos)  # steps of the approach
+    p = (pos[:n] - pos[0]) @ d
+    out: dict[str, float | None] = {
+        "approach_pullback_m": float(np.max(np.maximum.accumulate(p) - p)) if n else 0.0,
+        "pre_contact_dwell_s": None,
+        "damping_at_contact_Nspm": None,
+    }
+    if not touching.any():
+        return out
+    dt = float(np.median(np.diff(log["t"]))) if len(log["t"]) > 1 else 1e-3
+    va = vel[:n] @ d
+    if n:
+        k = int(np.argmax(va))
+        slow = va[k:] < frac * va[k] if va[k] > 0.0 else np.zeros(0, dtype=bool)
+        out["pre_contact_dwell_s"] = float(np.count_nonzero(slow) * dt)
+    damp = [log.get(f"damping_{a}_Nspm") for a in ax]
+    if all(v is not None for v in damp):
+        along = sum(di**2 * v[n] for di, v in zip(d, damp, strict=True))
+        out["damping_at_contact_Nspm"] = float(along)
+    return out
+
+
 def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]) -> dict:
     """The seed B metrics of one trial (module docstring)."""
     t = log["t"]
@@ -119,6 +172,8 @@ def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str,
         out.update(contact_losses=None, force_oscillation_rms_N=None, first_contact_s=None)
     if params.get("press_force_N") is not None:
         out["press_settle_time_s"] = _press_settle_time(t, fc, touching, dt, params)
+    if params.get("approach_dir") is not None:
+        out.update(_approach_metrics(log, dim, touching, params))
     rep = params.get("controller_report") or {}
     out["mpc_solves"] = float(rep.get("mpc_solves", 0))
     out["mpc_infeasible"] = float(rep.get("mpc_infeasible", 0))

@@ -25,10 +25,12 @@ from pathlib import Path
 from ccm.records import write_json_atomic
 
 # the paper experiments, longest first (job-seconds measured 2026-12-01 on 2 cores, for
-# scheduling only): h3 5 x 380, h1_adaptive_control 10 x ~95, mpc_contact 5 x 100, ...
+# scheduling only): h3 5 x 380, h1_adaptive_control 10 x ~95, mpc_contact 5 x 100 (each of its
+# two latency settings), ...
 PAPER_EXPERIMENTS = (
-    "h3_long_horizon", "h1_adaptive_control", "mpc_contact", "h4_contact_learning",
-    "h4_impactless", "h2_changing_surface", "mpc_rail", "h4_collisions", "gp_contact_models",
+    "h3_long_horizon", "h1_adaptive_control", "mpc_contact", "mpc_contact_latency",
+    "h4_contact_learning", "h4_impactless", "h2_changing_surface", "mpc_rail", "h4_collisions",
+    "gp_contact_models",
     "contact_head_to_head", "mpc_polishing", "mpc_goal_inference", "h1_forward_model",
     "mpc_convexity", "h4_impact_design",
 )  # fmt: skip

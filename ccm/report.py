@@ -1,6 +1,10 @@
 """``ccm report DIR``: aggregate the runs under DIR into report.md and report.html (issue #8).
 
-DIR is one run directory or a multirun tree: every ``summary.json`` below it is read.
+DIR is one run directory or a multirun tree: every ``summary.json`` below it is read. The
+run's timing facts (``run_info.json``: ``mpc_rate_hz``, ``mpc_cpu_rate_hz``,
+``mpc_iterations_median``, ``mpc_ms_per_iteration`` per condition) join its conditions as
+metrics of the same names, so a claim can compare rates measured in one process (seed B
+Table 2); summary.json itself stays free of them (it must be identical run to run).
 
 * **Claims** (``experiments/claims.yaml``, :mod:`ccm.claims`): for each claim whose experiment
   has runs under DIR, the paper's value, ours (mean ± 95 % CI over the seeds found) and the
@@ -41,7 +45,8 @@ def collect(root: Path) -> list[tuple[Path, dict[str, Any]]]:
     runs = []
     for path in sorted(root.rglob("summary.json")):
         try:
-            runs.append((path.parent, json.loads(path.read_text(encoding="utf-8"))))
+            summary = json.loads(path.read_text(encoding="utf-8"))
+            runs.append((path.parent, with_run_info(path.parent, summary)))
         except (OSError, json.JSONDecodeError) as exc:
             runs.append((path.parent, {"status": "failed", "error": f"unreadable: {exc}"}))
     for cfg in sorted(root.rglob(".hydra/config.yaml")):
@@ -51,6 +56,29 @@ def collect(root: Path) -> list[tuple[Path, dict[str, Any]]]:
     if not runs:
         raise ConfigError("report.dir", f"no summary.json under {root}")
     return sorted(runs, key=lambda r: str(r[0]))
+
+
+RUN_INFO_METRICS = (
+    "mpc_rate_hz", "mpc_cpu_rate_hz", "mpc_iterations_median", "mpc_ms_per_iteration",
+)  # fmt: skip
+
+
+def with_run_info(run: Path, summary: dict[str, Any]) -> dict[str, Any]:
+    """``summary`` with the run's per-condition wall-clock MPC facts (``RUN_INFO_METRICS`` of
+    ``run_info.json``) added to its conditions; unchanged without a readable run_info.json."""
+    try:
+        info = json.loads((run / "run_info.json").read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return summary
+    conditions = summary.get("conditions")
+    if not isinstance(info, dict) or not isinstance(conditions, dict):
+        return summary
+    for name in RUN_INFO_METRICS:
+        per_condition = info.get(name)
+        for cond, v in (per_condition if isinstance(per_condition, dict) else {}).items():
+            if isinstance(conditions.get(cond), dict):
+                conditions[cond][name] = v
+    return summary
 
 
 def _hydra_config(run: Path) -> dict[str, Any]:

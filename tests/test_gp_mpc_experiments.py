@@ -44,6 +44,9 @@ def test_goal_inference_finds_the_goal_and_is_deterministic(composer, tmp_path: 
     ).read_bytes()
     info = json.loads((tmp_path / "a" / "run_info.json").read_text())
     assert info["mpc_rate_hz"]["gp_mpc"] > 0  # wall-clock rate: run_info, not the summary
+    # Table 2's context: the process's CPU-time rate and IPOPT's iterations per solve
+    assert info["mpc_cpu_rate_hz"]["gp_mpc"] > 0 and info["mpc_iterations_median"]["gp_mpc"] >= 1
+    assert info["mpc_ms_per_iteration"]["gp_mpc"] > 0
 
 
 def test_contact_well_damped_raises_damping_on_stiff_contact(composer, tmp_path: Path) -> None:

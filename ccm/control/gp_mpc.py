@@ -133,6 +133,8 @@ class GPMPC(Controller):
         self._needs_fit = False  # set by load_learned_state; fitted at the next reset
         self.infeasible_total = 0
         self._timing: list[float] = []
+        self._iterations: list[int] = []
+        self._cpu: list[float] = []  # process CPU time of each solve: robust to a shared machine
         self.dim = 0
 
     def _check_alpha(self) -> None:
@@ -185,6 +187,8 @@ class GPMPC(Controller):
         self.infeasible = 0
         self.solves = 0
         self._timing = []
+        self._iterations = []
+        self._cpu = []
         if self._problem is not None:
             self._problem.reset_warm_start()
 
@@ -277,9 +281,11 @@ class GPMPC(Controller):
                 self.belief, obs.force, means, variances + noise, min_belief=self.min_belief
             )
         xi = np.concatenate([obs.position, obs.lin_vel])
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         sol = self._problem.solve(xi, self.belief, self.mass, self.damping, self.f_ref)
         self._timing.append(time.perf_counter() - t0)
+        self._cpu.append(time.process_time() - c0)
+        self._iterations.append(sol.iterations)
         self.solves += 1
         if sol.success:
             self.f_ref, self.mass, self.damping = sol.f_ref, sol.mass, sol.damping
@@ -310,7 +316,11 @@ class GPMPC(Controller):
             "demonstration": self.demonstrating,
             "belief": getattr(self, "belief", np.ones(1)).tolist(),
             "disturbance_alpha": self.disturbance_alpha,
-            "timing": {"mpc_solve_s": list(self._timing)},
+            "timing": {
+                "mpc_solve_s": list(self._timing),
+                "mpc_solve_cpu_s": list(self._cpu),
+                "mpc_iterations": list(self._iterations),
+            },
         }
 
     def learned_state(self) -> dict[str, Any] | None:
