@@ -24,10 +24,12 @@ the same with a / b; positive when the claim holds; ≥ 0 suffices for the bound
 equality): :func:`ccm.claim_stats.decide`,
 the 95 % t-interval of the mean margin, or a sign test where the margins are clearly not
 normal; the report says which rule decided. A reference may take the metric's magnitude
-(``abs: true``: a signed error against a bound). Every run of the claim's experiment must be
-``ok`` and give its values: otherwise the claim is **not measured**, and the text says how many
-runs are missing and what the measured ones give. For a comparison of two references the text
-shows both values next to the ratio or difference.
+(``abs: true``: a signed error against a bound); ``condition: run_info`` reads one of the run's
+scalar wall-clock facts that ``ccm report`` joins from run_info.json. Every run of the
+claim's experiment must be ``ok`` and give its values: otherwise the claim is **not
+measured**, and the text says how many runs are missing and what the measured ones give.
+For a comparison of two references the text shows both values next to the ratio or
+difference.
 
 A claim about a mechanism may name ``requires``: references with bounds
 (``{condition, metric, at_least, at_most}``) that show the mechanism acting in a run, e.g.
@@ -63,6 +65,8 @@ _CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment"
                "a", "b", "value", "tolerance", "figures", "note", "discussion", "requires",
                "task")  # fmt: skip
 _REF_KEYS = ("condition", "metric", "trial", "abs")
+#: the pseudo-condition of a run's scalar wall-clock facts (run_info.json, joined by ccm report)
+RUN_INFO = "run_info"
 _REQ_KEYS = (*_REF_KEYS, "at_least", "at_most", "changed_from")
 
 
@@ -76,7 +80,9 @@ class Ref:
     absolute: bool = False  # YAML ``abs``: the metric's magnitude (a signed error vs a bound)
 
     def value(self, summary: Mapping[str, Any]) -> float | None:
-        if self.trial is None:
+        if self.condition == RUN_INFO:
+            v = (summary.get(RUN_INFO) or {}).get(self.metric)
+        elif self.trial is None:
             v = (summary.get("conditions") or {}).get(self.condition, {}).get(self.metric)
         else:
             rows = [

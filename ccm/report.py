@@ -65,7 +65,9 @@ RUN_INFO_METRICS = (
 
 def with_run_info(run: Path, summary: dict[str, Any]) -> dict[str, Any]:
     """``summary`` with the run's per-condition wall-clock MPC facts (``RUN_INFO_METRICS`` of
-    ``run_info.json``) added to its conditions; unchanged without a readable run_info.json."""
+    ``run_info.json``) added to its conditions, and the run's scalar wall-clock facts (e.g.
+    H3's ``joint_multi_train_s``) under ``run_info``, where a claim reads them with
+    ``condition: run_info``; unchanged without a readable run_info.json."""
     try:
         info = json.loads((run / "run_info.json").read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError):
@@ -78,6 +80,9 @@ def with_run_info(run: Path, summary: dict[str, Any]) -> dict[str, Any]:
         for cond, v in (per_condition if isinstance(per_condition, dict) else {}).items():
             if isinstance(conditions.get(cond), dict):
                 conditions[cond][name] = v
+    summary["run_info"] = {
+        k: v for k, v in info.items() if isinstance(v, int | float) and not isinstance(v, bool)
+    }
     return summary
 
 

@@ -219,3 +219,36 @@ def test_heavy_tailed_margins_are_judged_by_the_sign_test() -> None:
     assert d.verdict == "partially" and d.rule.startswith("sign test (4 of 5 hold")
     normal = decide([0.9, 1.1, 1.0, 1.2, 0.8], lambda m: m > 0)
     assert normal.verdict == "reproduced" and normal.rule == "95 % t-interval of the mean margin"
+
+
+def test_run_info_reference_reads_the_wall_clock_facts(tmp_path: Path) -> None:
+    """``condition: run_info`` reads a scalar of run_info.json, joined by ccm report's
+    collect; without the file the claim is not measured."""
+    import json
+
+    from ccm.report import collect
+
+    c = parse_claim(
+        {**LESS, "compare": "within", "value": 3300.0, "tolerance": 0.5, "b": None,
+         "a": {"condition": "run_info", "metric": "train_s"}}, "c",
+    )  # fmt: skip
+    for seed, train in ((0, 2000.0), (1, 2100.0), (2, 1900.0)):
+        run = tmp_path / f"s{seed}"
+        run.mkdir()
+        (run / "summary.json").write_text(json.dumps(_summary("e", 0.0, 0.0)))
+        (run / "run_info.json").write_text(json.dumps({"train_s": train, "per": {"x": 1.0}}))
+    runs = [s for _, s in collect(tmp_path)]
+    assert evaluate(c, runs).verdict == "reproduced"  # 1900-2100 s within 3300 +- 50 %
+    fast = parse_claim(
+        {
+            **LESS,
+            "compare": "within",
+            "value": 30000.0,
+            "tolerance": 0.5,
+            "b": None,
+            "a": {"condition": "run_info", "metric": "train_s"},
+        },
+        "c",
+    )
+    assert evaluate(fast, runs).verdict == "not reproduced"
+    assert evaluate(c, [_summary("e", 0.0, 0.0)] * 3).verdict == "not measured"
