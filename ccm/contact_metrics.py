@@ -41,6 +41,8 @@ Definitions (one trial; step k is one control step, ``t[k]`` its time, dt the me
   Absolute, like the F_m the controller measures (Eq. 9): for a wall met while sliding it
   includes the friction of the surfaces already touched that acts along the wall's normal
   (a few N here).
+* ``impact_force_error_N_<name>`` = |``impact_force_N_<name>`` − ``impact_force_target_N``|:
+  how far the impact is from Eq. 9's F_d (seed A §4.5.1: 8 N).
 * ``impact_acc_mps2_<name>`` = max ‖a[k]‖ over t[o_c] + w0 ≤ t[k] ≤ t[o_c] + w1, with a the
   acceleration from the measured velocity through :func:`ccm.metrics.derivatives` (the same
   low-pass, ``lowpass_hz``, as ``peak_acc_mps2`` of every condition); ``peak_impact_acc_mps2``
@@ -167,6 +169,9 @@ def contact_metrics(
 
     rise = check_nonneg("metrics.impact_onset_N", params.get("impact_onset_N", 1.0))
     window = check_nonneg("metrics.impact_window_s", params.get("impact_window_s", 0.05))
+    f_target = check_positive(
+        "metrics.impact_force_target_N", params.get("impact_force_target_N", 8.0)
+    )
     near = check_nonneg("metrics.impact_near_m", params.get("impact_near_m", 0.01))
     w0, w1 = _acc_window(params.get("impact_acc_window_s", (-0.05, 0.2)))
     lowpass_hz = check_positive("metrics.lowpass_hz", params.get("lowpass_hz"))
@@ -208,6 +213,7 @@ def contact_metrics(
                 impact_f.append(force)
                 impact_a.append(acc_peak)
             out[f"impact_force_N_{name}"] = force
+            out[f"impact_force_error_N_{name}"] = None if force is None else abs(force - f_target)
             out[f"impact_acc_mps2_{name}"] = acc_peak
             out[f"contact_time_s_{name}"] = t_on
     out["peak_impact_force_N"] = max(impact_f) if impact_f else None

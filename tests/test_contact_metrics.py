@@ -88,9 +88,15 @@ def test_onset_is_a_rise_over_the_segment_start_level() -> None:
     out = contact_metrics(log, 3, {**PARAMS, "task_contacts": [TABLE]})
     assert out["contact_time_s_table"] == pytest.approx(T_HIT)
     assert out["impact_force_N_table"] == pytest.approx(13.0)
+    assert out["impact_force_error_N_table"] == pytest.approx(5.0)  # |13 - F_d 8|
+    below = contact_metrics(
+        log, 3, {**PARAMS, "impact_force_target_N": 20.0, "task_contacts": [TABLE]}
+    )
+    assert below["impact_force_error_N_table"] == pytest.approx(7.0)  # |13 - 20|
     out = contact_metrics(log, 3, {**PARAMS, "impact_onset_N": 9.0, "task_contacts": [TABLE]})
     assert out["contact_time_s_table"] is None
     assert out["impact_force_N_table"] is None
+    assert out["impact_force_error_N_table"] is None
     assert out["peak_impact_force_N"] is None
 
 
