@@ -6,7 +6,9 @@ and ``belief_<n>`` (:class:`ccm.control.gp_mpc.GPMPC`), the truth ``truth_human_
 simulated human, and ``controller_report`` (solve counts). Parameters (``cfg.metrics``):
 ``contact_loss_min_s``, ``oscillation_highpass_hz``, ``vel_split_hz``, ``belief_level``,
 ``varied_axis``, ``repeatable_axis``, ``press_force_N``, ``press_tol_N``, ``press_hold_s``,
-``human_shoulder``, ``far_from_human_m``, ``approach_dir``, ``pause_speed_frac``.
+``human_shoulder``, ``far_from_human_m``, ``approach_dir``, ``pause_speed_frac``,
+and for a rail (``mpc_rail``) ``rail_point``, ``rail_normal``, ``tool_half_extent_m``,
+``rail_contact_force_N``, ``near_rail_m``, ``far_rail_m``.
 
 Definitions (dt = the log's median step):
 
@@ -49,6 +51,16 @@ Definitions (dt = the log's median step):
   None when there are none.
 * ``disturbance_alpha_N``: α of Eq. 16 as the controller estimated it from its demonstrations
   (``controller_report``; only when it estimated one).
+* Rail metrics (only when ``rail_point`` is set; seed B §6.2, Fig. 8). The distance to the
+  rail is d(t) = (x(t) − rail_point)·n − ``tool_half_extent_m``, with n the rail's outward
+  normal ``rail_normal`` (the gap between the tool's contact point and the rail; ≤ 0 in
+  contact). The rail's push on the tool is f_n = contact_force·n.
+  ``task_success``: 1.0 if at some step the tool touches (``n_contacts`` > 0) with f_n ≥
+  ``rail_contact_force_N``, else 0.0; ``time_to_rail_s``: the first such time (None if never).
+  ``near_damping_<axis>_Nspm`` and ``near_damping_ratio_varied_repeatable``: the mean damping
+  over the steps with d ≤ ``near_rail_m`` and the ratio of those means (None if the tool never
+  came that near); ``far_damping_<axis>_Nspm``: the mean over the steps with d >
+  ``far_rail_m``; ``min_rail_distance_m``: the smallest d of the trial.
 * ``belief_correct_final``: 1.0 if the final belief's largest entry is the human's goal;
   ``time_to_belief_s``: the first time the belief in the true goal reaches ``belief_level``
   (None if never; seed B Fig. 11).
@@ -150,6 +162,49 @@ def _approach_metrics(
     return out
 
 
+def rail_distance(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]) -> np.ndarray:
+    """d(t) of the module docstring [m]: gap between the tool's contact point and the rail."""
+    point = np.asarray(params["rail_point"], dtype=float)
+    normal = np.asarray(params["rail_normal"], dtype=float)
+    if point.shape != (dim,) or normal.shape != (dim,) or not np.linalg.norm(normal) > 0:
+        raise ConfigError("metrics.rail_point", f"rail_point and rail_normal need {dim} values")
+    normal = normal / np.linalg.norm(normal)
+    half = check_nonneg("metrics.tool_half_extent_m", params.get("tool_half_extent_m", 0.0))
+    pos = np.column_stack([log[f"pos_{a}"] for a in AXES[:dim]])
+    return (pos - point) @ normal - half
+
+
+def _mean_over(x: np.ndarray | None, mask: np.ndarray) -> float | None:
+    return float(np.mean(x[mask])) if x is not None and mask.any() else None
+
+
+def rail_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]) -> dict:
+    """Task success, time to the rail and the damping near / far from it (module docstring;
+    seed B §6.2, Fig. 8). Reads the rail's truth: evaluation only."""
+    ax = AXES[:dim]
+    d = rail_distance(log, dim, params)
+    normal = np.asarray(params["rail_normal"], dtype=float)
+    normal = normal / np.linalg.norm(normal)
+    f_n = np.column_stack([log[f"contact_force_{a}"] for a in ax]) @ normal
+    thr = check_positive("metrics.rail_contact_force_N", params.get("rail_contact_force_N"))
+    reached = np.flatnonzero((log["n_contacts"] > 0) & (f_n >= thr))
+    near = d <= check_nonneg("metrics.near_rail_m", params.get("near_rail_m"))
+    far = d > check_nonneg("metrics.far_rail_m", params.get("far_rail_m"))
+    out: dict[str, float | None] = {
+        "task_success": 1.0 if reached.size else 0.0,
+        "time_to_rail_s": float(log["t"][reached[0]]) if reached.size else None,
+        "min_rail_distance_m": float(d.min()) if d.size else None,
+    }
+    damp = {a: log.get(f"damping_{a}_Nspm") for a in ax}
+    for a, x in damp.items():
+        out[f"near_damping_{a}_Nspm"] = _mean_over(x, near)
+        out[f"far_damping_{a}_Nspm"] = _mean_over(x, far)
+    va, ra = params.get("varied_axis"), params.get("repeatable_axis")
+    nv, nr = out.get(f"near_damping_{va}_Nspm"), out.get(f"near_damping_{ra}_Nspm")
+    out["near_damping_ratio_varied_repeatable"] = nv / nr if nv is not None and nr else None
+    return out
+
+
 def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]) -> dict:
     """The seed B metrics of one trial (module docstring)."""
     t = log["t"]
@@ -195,6 +250,8 @@ def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str,
     if va in damp and ra in damp and damp[va] is not None and damp[ra] is not None:
         out["damping_ratio_varied_repeatable"] = float(np.mean(damp[va]) / np.mean(damp[ra]))
     out.update(goal_metrics(log, dim))
+    if params.get("rail_point") is not None:
+        out.update(rail_metrics(log, dim, params))
     beliefs = sorted(k for k in log if k.startswith("belief_"))
     if len(beliefs) > 1 and "truth_human_goal" in log:
         b = np.column_stack([log[k] for k in beliefs])

@@ -30,7 +30,8 @@ def write_figures(
     ``modes.png`` / ``mode_stiffness_error.png`` when it logs ``mode`` (:mod:`ccm.plots_modes`),
     and ``contact_transitions.png`` / ``patch_transitions.png`` for the H4 contacts experiments
     (:mod:`ccm.plots_contacts`, :mod:`ccm.plots_patches`), and ``mpc_*.png`` for the GP-MPC
-    controller (:mod:`ccm.plots_mpc`).
+    controller (:mod:`ccm.plots_mpc`), ``mpc_rail_damping.png`` for its rail task
+    (:mod:`ccm.plots_rail`).
     """
     import matplotlib
 
@@ -209,4 +210,8 @@ def write_figures(
     from ccm.plots_mpc import write_mpc_figures
 
     write_mpc_figures(last, dim, save)
+    # 12. seed B rail task: damping against the distance to the rail (seed B Fig. 8)
+    from ccm.plots_rail import write_rail_figure
+
+    write_rail_figure(fig_dir.parent, trials, dim, settings.get("metrics") or {}, save)
     return written
