@@ -3,6 +3,7 @@ experiments, and the verdict logic judges synthetic summaries as documented."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -252,3 +253,14 @@ def test_run_info_reference_reads_the_wall_clock_facts(tmp_path: Path) -> None:
     )
     assert evaluate(fast, runs).verdict == "not reproduced"
     assert evaluate(c, [_summary("e", 0.0, 0.0)] * 3).verdict == "not measured"
+
+
+def test_every_claim_is_in_the_claim_map() -> None:
+    """experiments/README.md maps each paper part to its claim ids (issue #18): none left out."""
+    root = Path(__file__).resolve().parents[1]
+    text = (root / "experiments" / "README.md").read_text(encoding="utf-8")
+    listed = set(re.findall(r"[\w.-]+", text[text.index("## Claim map") :]))
+    missing = [
+        c.id for c in load_claims(root / "experiments" / "claims.yaml") if c.id not in listed
+    ]
+    assert missing == []
