@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import gc
 import math
-import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -32,6 +31,9 @@ from ccm.control.registry import make_controller
 from ccm.errors import (
     ConfigError,
     SimulationDiverged,
+    check_bool,
+    check_file_name,
+    check_int_nonneg,
     check_int_positive,
     check_nonneg,
     check_positive,
@@ -52,7 +54,6 @@ from ccm.types import Observation, StepInfo
 #: compose(extra_overrides) -> config; provided by the CLI (Hydra compose API)
 ComposeFn = Callable[[Sequence[str]], DictConfig]
 
-_NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 #: experiment.kind -> "module:function(cfg, compose, out_dir) -> summary" for analyses that
 #: are not the condition x phase x trial loop
 ANALYSES = {
@@ -120,8 +121,7 @@ def resolve_conditions(cfg: DictConfig, compose: ComposeFn) -> list[Condition]:
     out = []
     for name, overrides in spec.items():
         key = f"experiment.conditions.{name}"
-        if not _NAME_RE.match(str(name)):
-            raise ConfigError(key, "condition names may use letters, digits, '_', '-', '.'")
+        check_file_name(key, str(name))  # a directory of timeseries/
         if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
             raise ConfigError(key, "must be a list of override strings, e.g. [controller=x]")
         out.append(Condition(name=str(name), cfg=compose(list(overrides)), overrides=overrides))
@@ -141,8 +141,7 @@ def resolve_phases(cfg: DictConfig, trials: int) -> list[Phase]:
         if not isinstance(ph, dict) or set(ph) - {"name", "trials", "overrides"}:
             raise ConfigError(key, "must be a mapping with keys name, trials, overrides")
         name = str(ph.get("name", f"phase{i}"))
-        if not _NAME_RE.match(name):
-            raise ConfigError(f"{key}.name", "may use letters, digits, '_', '-', '.'")
+        check_file_name(f"{key}.name", name)
         overrides = ph.get("overrides") or []
         if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
             raise ConfigError(f"{key}.overrides", "must be a list of override strings")
@@ -226,7 +225,7 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
     if kind != "trials" and kind not in ANALYSES:
         allowed = ", ".join(("trials", *ANALYSES))
         raise ConfigError("experiment.kind", f"must be one of {allowed}, got {kind!r}")
-    fast = bool(exp.get("fast", False))
+    fast = check_bool("experiment.fast", exp.get("fast", False))
     trials = check_int_positive("experiment.trials", exp.get("trials", 1))
     max_time = exp.get("max_time_s")
     if max_time is not None:
@@ -237,8 +236,8 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
         )
         fast_time = check_positive("experiment.fast_time_s", exp.get("fast_time_s", 0.5))
         max_time = fast_time if max_time is None else min(max_time, fast_time)
-    if not isinstance(cfg.get("seed"), int) or isinstance(cfg.get("seed"), bool):
-        raise ConfigError("seed", f"must be an integer, got {cfg.get('seed')!r}")
+    check_int_nonneg("seed", cfg.get("seed"))  # numpy's SeedSequence takes no negative seed
+    check_file_name("experiment.name", exp.get("name"))  # a directory of hydra.run/sweep.dir
     return {
         "trials": trials,
         "max_time_s": max_time,
@@ -247,7 +246,7 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
         "completion_tol_m": check_positive(
             "metrics.completion_tol_m", cfg.metrics.completion_tol_m
         ),
-        "figures": bool(exp.get("figures", True)),
+        "figures": check_bool("experiment.figures", exp.get("figures", True)),
         "fast": fast,
         "max_retime_s": check_nonneg("experiment.max_retime_s", exp.get("max_retime_s", 60.0)),
     }

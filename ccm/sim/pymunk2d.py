@@ -50,6 +50,7 @@ import pymunk
 from ccm.errors import (
     ConfigError,
     SimulationDiverged,
+    check_bool,
     check_int_positive,
     check_keys,
     check_positive,
@@ -57,7 +58,7 @@ from ccm.errors import (
 )
 from ccm.sim.base import Simulator
 from ccm.sim.hri_forces import HRIForces
-from ccm.sim.scene import SceneSpec, as_plain, check_bool
+from ccm.sim.scene import SceneSpec, as_plain
 from ccm.sim.sensor import FTSensor, SensorConfig
 from ccm.types import Command, Observation, StepInfo
 
