@@ -14,6 +14,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import ccm
+from ccm import jobdir
+
+jobdir.register()  # hydra.sweep.subdir names jobs through it, here and in launcher workers
 
 GROUPS = ("sim", "controller", "task", "experiment")
 EXIT_CONFIG = 2
