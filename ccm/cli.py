@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import ccm
@@ -118,6 +118,8 @@ def _combos(overrides: Sequence[str], multirun: bool) -> list[list[str]]:
                 raise ValueError(f"{ov.input_line}: sweeps need `ccm run -m`")
             prefix = ov.input_line.split(ov.key_or_group, 1)[0]
             values = [f"{prefix}{ov.get_key_element()}={v}" for v in ov.sweep_string_iterator()]
+            if not values:  # e.g. range(0,0): Hydra would launch no job
+                raise ValueError(f"{ov.input_line}: the sweep is empty; give at least one value")
             base.append(values[0])
             variants.append((i, values[1:]))
         else:
@@ -140,15 +142,10 @@ def _check_groups(overrides: Sequence[str]) -> str | None:
 
 
 def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
-    """Compose each override combination and build its components; return an error line."""
-    import yaml
-    from hydra import compose, initialize_config_dir
+    """Compose each override combination and build its components, then check Hydra's own
+    settings (output directory, launcher); return an error line."""
+    from hydra import initialize_config_dir
     from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
-
-    from ccm.errors import ConfigError
-    from ccm.metrics import check_extra_metrics
-    from ccm.runner import check_experiment, plan_experiment
 
     try:
         combos = _combos(overrides, multirun)
@@ -160,28 +157,72 @@ def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
             bad = _check_groups(combo)
             if bad:
                 return bad
-            try:
-                cfg = compose("config", overrides=combo)
-                settings = check_experiment(cfg)
-                check_extra_metrics(cfg)
-                # the seed changes no component: build each plan once per seed sweep
-                unseeded = tuple(o for o in combo if o.partition("=")[0].lstrip("+~") != "seed")
-                if unseeded in planned:
-                    continue
-                planned.add(unseeded)
-                plan_experiment(cfg, lambda x, c=combo: _compose_extra(c, x), settings["trials"])
-            except ConfigError as exc:
-                return str(exc)
-            except (HydraException, OmegaConfBaseException, ValueError, TypeError) as exc:
-                return _one_line(exc)
-            except yaml.YAMLError as exc:
-                if os.environ.get("HYDRA_FULL_ERROR") == "1":
-                    raise
-                return _yaml_line(exc)
-            except Exception as exc:  # a bug, not a user error: one line unless --verbose
-                if os.environ.get("HYDRA_FULL_ERROR") == "1":
-                    raise
-                return f"{type(exc).__name__}: {_one_line(exc)}"
+            err = _guarded(lambda c=combo: _check_combo(c, planned))
+            if err:
+                return err
+        return _guarded(lambda: _check_hydra(overrides, combos[0], multirun))
+
+
+def _check_combo(combo: list[str], planned: set[tuple[str, ...]]) -> None:
+    """Compose one override combination and build its plan (once per set of overrides
+    other than the seed, which changes no component); raise on bad input."""
+    from hydra import compose
+
+    from ccm.config_check import check_trial_steps
+    from ccm.metrics import check_extra_metrics
+    from ccm.runner import check_experiment, plan_experiment
+
+    cfg = compose("config", overrides=combo)
+    settings = check_experiment(cfg)
+    check_extra_metrics(cfg)
+    unseeded = tuple(o for o in combo if o.partition("=")[0].lstrip("+~") != "seed")
+    if unseeded in planned:
+        return
+    planned.add(unseeded)
+    plan = plan_experiment(cfg, lambda x: _compose_extra(combo, x), settings["trials"])
+    if cfg.experiment.get("kind", "trials") == "trials":
+        check_trial_steps(plan, settings)
+
+
+def _check_hydra(overrides: Sequence[str], base: list[str], multirun: bool) -> None:
+    """Compose the base combination with its ``hydra`` overrides (sweeps left out) and check
+    the run or sweep directory, the job name and the launcher."""
+    from hydra import compose
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from ccm.config_check import check_hydra
+
+    parsed = OverridesParser.create().parse_overrides(list(overrides))
+    own = [
+        ov.input_line for ov in parsed
+        if ov.key_or_group.startswith("hydra") and not ov.is_sweep_override()
+    ]  # fmt: skip
+    cfg = compose("config", overrides=[*base, *own], return_hydra_config=True)
+    check_hydra(cfg.hydra, multirun)
+
+
+def _guarded(check: Callable[[], None]) -> str | None:
+    """Run ``check``; a user error becomes its one line (a bug too, unless --verbose)."""
+    import yaml
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from ccm.errors import ConfigError
+
+    try:
+        check()
+    except ConfigError as exc:
+        return str(exc)
+    except (HydraException, OmegaConfBaseException, ValueError, TypeError) as exc:
+        return _one_line(exc)
+    except yaml.YAMLError as exc:
+        if os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        return _yaml_line(exc)
+    except Exception as exc:  # a bug, not a user error: one line unless --verbose
+        if os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        return f"{type(exc).__name__}: {_one_line(exc)}"
     return None
 
 

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
+from ccm.config_check import check_trial_steps, trial_duration
 from ccm.contact_metrics import contact_table
 from ccm.control.base import Controller
 from ccm.control.registry import make_controller
@@ -357,14 +358,14 @@ def run_experiment(
         raise ConfigError("experiment.kind", f"must be one of {allowed}, got {kind!r}")
     settings = check_experiment(cfg)
     plan = plan_experiment(cfg, compose, settings["trials"])
+    check_trial_steps(plan, settings)
     extra = check_extra_metrics(cfg)
 
     def n_trials(ph: Phase) -> int:
         return min(ph.trials, settings["trials"]) if settings["fast"] else ph.trials
 
     def duration(comp: Components) -> float:
-        d = comp.task.pattern.duration + settings["settle_time_s"]
-        return d if settings["max_time_s"] is None else min(d, settings["max_time_s"])
+        return trial_duration(comp.task.pattern.duration, settings)
 
     # a truncated trial (max_time_s, fast) is never lengthened by re-timing
     extension = 0.0 if settings["max_time_s"] is not None else settings["max_retime_s"]
