@@ -47,7 +47,7 @@ from ccm.metrics import (
     trial_metrics,
 )
 from ccm.records import TrialRecorder, write_atomic, write_json_atomic
-from ccm.sim import make_sim
+from ccm.sim import BACKENDS, backend, make_sim
 from ccm.sim.base import Simulator, check_state_finite
 from ccm.tasks.task import Task, load_task
 from ccm.types import Observation, StepInfo
@@ -205,13 +205,24 @@ def build_components(cfg: DictConfig) -> Components:
     orientation = plain(cfg.task.get("orientation"))
     if orientation and cfg.task.get("dim") == 3:  # the 3D start pose includes the tool's quaternion
         start += list(orientation)
+    # before the scene is parsed: a 2-D scene read as a 3-D one fails on an "unknown key"
+    check_dims(cfg.task.get("dim"), backend(cfg.sim.get("name")).dim, cfg)
     sim = make_sim(plain(cfg.sim), plain(cfg.task.get("scene", {})), start)
     task = load_task(cfg.task, sim.control_dt)
-    if task.dim != sim.dim:
-        raise ConfigError("task.dim", f"task is {task.dim}-D but sim={cfg.sim.name} is {sim.dim}-D")
+    check_dims(task.dim, sim.dim, cfg)
     controller = make_controller(plain(cfg.controller))
     controller.reset(task.dim, sim.control_dt)  # validates dimension-dependent gains
     return Components(sim=sim, task=task, controller=controller)
+
+
+def check_dims(task_dim: Any, sim_dim: int, cfg: DictConfig) -> None:
+    """A task runs only on a simulator of its dimension (``task.dim``)."""
+    if task_dim in (2, 3) and task_dim != sim_dim:
+        other = next(n for n in BACKENDS if backend(n).dim == task_dim)
+        raise ConfigError(
+            "task.dim", f"task={cfg.task.get('name')} is a {task_dim}-D task, for sim={other}; "
+            f"sim={cfg.sim.get('name')} simulates {sim_dim}-D tasks",
+        )  # fmt: skip
 
 
 def trial_seed(seed: int, trial: int) -> int:
