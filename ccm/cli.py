@@ -59,11 +59,16 @@ def group_options(group: str) -> list[str]:
 
 
 def describe(group: str, option: str) -> str:
-    """The ``description`` field of a group option, or its first comment line."""
-    from omegaconf import OmegaConf
+    """The ``description`` field of a group option, or its first comment line; a file whose
+    top level is not a mapping raises ConfigError naming it."""
+    from omegaconf import DictConfig, OmegaConf
+
+    from ccm.errors import ConfigError
 
     path = config_dir() / group / f"{option}.yaml"
     node = OmegaConf.load(path)
+    if not isinstance(node, DictConfig):
+        raise ConfigError(str(path), "the top level is a list; a config is a mapping of keys")
     desc = OmegaConf.select(node, "description", default=None)
     if desc is None:
         desc = OmegaConf.select(node, f"{group}.description", default=None)
@@ -77,15 +82,18 @@ def describe(group: str, option: str) -> str:
 def cmd_list() -> int:
     import yaml
 
+    from ccm.errors import ConfigError
+
     broken = 0
     for group in ("experiment", "task", "controller", "sim"):
         print(f"{group}:")
         for opt in group_options(group):
             try:
                 text = describe(group, opt)
-            except yaml.YAMLError as exc:  # a broken option is named, the rest still listed
+            except (yaml.YAMLError, ConfigError) as exc:  # named, the rest still listed
                 broken += 1
-                text = f"(unreadable: {_yaml_line(exc)})"
+                line = str(exc) if isinstance(exc, ConfigError) else _yaml_line(exc)
+                text = f"(unreadable: {line})"
             print(f"  {opt:<28} {text}")
     return EXIT_CONFIG if broken else 0
 
@@ -367,18 +375,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         return cmd_list()
     if argv[0] == "run":
         return cmd_run(argv[1:])
-    if argv[0] == "report":
+    if argv[0] in ("report", "paper"):
         from ccm.errors import ConfigError
+        from ccm.paper import main as paper
         from ccm.report import main as report
 
         try:
-            return report(argv[1:])
+            return (report if argv[0] == "report" else paper)(argv[1:])
         except ConfigError as exc:
             return _fail(str(exc), EXIT_CONFIG)
-    if argv[0] == "paper":
-        from ccm.paper import main as paper
-
-        return paper(argv[1:])
     return _fail(
         f"unknown command {argv[0]!r}; allowed: run, list, report, paper, --help", EXIT_CONFIG
     )
