@@ -63,8 +63,8 @@ def collect(root: Path) -> list[tuple[Path, dict[str, Any]]]:
         if not (run / "summary.json").is_file():
             runs.append((run, _unfinished(cfg)))
     if not runs:
-        why = f" ({skipped} malformed, skipped)" if skipped else ""
-        raise ConfigError("report.dir", f"no usable summary.json under {root}{why}")
+        what = f"usable summary.json under {root} ({skipped} malformed, skipped)"
+        raise ConfigError("report.dir", f"no {what if skipped else f'summary.json under {root}'}")
     return sorted(runs, key=lambda r: str(r[0]))
 
 
