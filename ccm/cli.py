@@ -219,10 +219,11 @@ def _one_line(exc: BaseException) -> str:
 
 def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's signature check
     """The Hydra task function: lock and check the run directory (:mod:`ccm.run_record`),
-    run the experiment, or record the failure and exit non-zero."""
+    run the experiment, or record the failure or interruption and exit non-zero."""
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
+    from ccm.interrupts import RunInterrupted, job_signals
     from ccm.run_record import RecordRefused
     from ccm.sweep_check import mark_refused
 
@@ -230,12 +231,18 @@ def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's si
     out_dir = Path(hc.runtime.output_dir)
     multirun = hc.mode == RunMode.MULTIRUN
     try:
-        _open_and_run(cfg, out_dir, multirun)
+        with job_signals(multirun):
+            _open_and_run(cfg, out_dir, multirun)
     except RecordRefused as exc:
         print(f"ccm: error: {exc}", file=sys.stderr)
         if not multirun:
             sys.exit(EXIT_CONFIG)
         mark_refused(Path(hc.sweep.dir), out_dir, str(exc))
+    except RunInterrupted as exc:
+        if multirun:  # ccm run prints the line once the sweep has stopped
+            raise
+        print(f"ccm: interrupted ({exc.name}); partial record in {out_dir}", file=sys.stderr)
+        sys.exit(exc.exit_code)
 
 
 def _open_and_run(cfg: DictConfig, out_dir: Path, multirun: bool) -> None:
@@ -259,21 +266,27 @@ def _open_and_run(cfg: DictConfig, out_dir: Path, multirun: bool) -> None:
 
 
 def _run_locked(cfg: DictConfig, out_dir: Path, task_overrides: list[str], multirun: bool) -> None:
-    """Run the experiment into the locked ``out_dir``; a failure is written to summary.json
-    (status ``failed``) before it ends the run."""
+    """Run the experiment into the locked ``out_dir``; a failure or an interruption is written
+    to summary.json (status ``failed`` / ``interrupted``) before it ends the run."""
     from threadpoolctl import threadpool_limits
 
     from ccm.errors import ConfigError, SimulationDiverged
+    from ccm.interrupts import RunInterrupted, record_interrupt
     from ccm.records import write_json_atomic
     from ccm.runner import failed_summary, run_experiment
 
+    finished: list[dict] = []  # the trial loop's records, kept if the run is interrupted
     try:
         # one BLAS thread per job (cfg.blas_threads): parallel sweep workers must not
         # oversubscribe the cores, and the same count everywhere keeps results identical
         with threadpool_limits(limits=int(cfg.get("blas_threads") or 1)):
             summary = run_experiment(
-                cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir
-            )
+                cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir,
+                finished=finished,
+            )  # fmt: skip
+    except RunInterrupted as exc:
+        record_interrupt(out_dir, cfg, exc, finished)
+        raise
     except Exception as exc:
         expected = isinstance(exc, ConfigError | SimulationDiverged)
         message = str(exc) if expected else f"{type(exc).__name__}: {exc}"
@@ -309,15 +322,23 @@ _SHOWN = (
 
 
 def cmd_run(args: Sequence[str]) -> int:
-    """``ccm run``: precheck, then the Hydra app (``--force``: see :mod:`ccm.run_record`)."""
-    from ccm import run_record
+    """``ccm run``: precheck, then the Hydra app; SIGINT/SIGTERM end it with one line."""
+    from ccm import interrupts, run_record, sweep_check
 
     args = list(args)
     if "--verbose" in args:
         args.remove("--verbose")
         os.environ["HYDRA_FULL_ERROR"] = "1"
-    with run_record.forcing("--force" in args):
-        return _run_app([a for a in args if a != "--force"])
+    sweep_check.ACTIVE.clear()
+    try:
+        with run_record.forcing("--force" in args), interrupts.launcher_env():
+            with interrupts.interrupts_raise(interrupts.stop_local_workers):
+                return _run_app([a for a in args if a != "--force"])
+    except interrupts.RunInterrupted as exc:
+        where = sweep_check.ACTIVE.get("sweep_dir")
+        tail = f"; partial records in {where}" if where else ""
+        print(f"ccm: interrupted ({exc.name}){tail}", file=sys.stderr)
+        return exc.exit_code
 
 
 def _run_app(args: list[str]) -> int:

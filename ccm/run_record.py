@@ -1,5 +1,5 @@
 """Run records a lab can trust (issue #19): a lock and a config check on every run directory,
-no stale temporary files.
+no stale temporary files. Interrupts: :mod:`ccm.interrupts`.
 
 Every run (a single run, or each job of a sweep) opens its run directory with
 :func:`open_record`, which, before anything is written there:

@@ -24,6 +24,8 @@ from ccm.run_record import REPLACED
 
 #: Job directories of the last sweep in this process that did not end ok.
 FAILED_JOBS: list[str] = []
+#: ``sweep_dir`` of the sweep running in this process (for ``ccm run``'s interrupt line)
+ACTIVE: dict[str, str] = {}
 REFUSED_DIR = ".refused"
 
 
@@ -61,6 +63,7 @@ class SweepCheck(Callback):
 
     def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
         sweep_dir = Path(str(config.hydra.sweep.dir))
+        ACTIVE["sweep_dir"] = str(sweep_dir)
         shutil.rmtree(sweep_dir / REFUSED_DIR, ignore_errors=True)  # an earlier sweep's
 
     def on_multirun_end(self, config: Any, **kwargs: Any) -> None:

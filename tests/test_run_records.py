@@ -1,8 +1,9 @@
 """Run records a lab can trust (issue #19): the run directory's lock, the config check and
-``--force``.
+``--force``, clean interrupts (SIGINT, SIGTERM; a local sweep's workers stopped too).
 
-The lock cases run real ``ccm run`` subprocesses lasting several seconds; the config check
-runs in-process (``ccm.cli.main``, as the reliability catalogue does).
+The lock and interrupt cases run real ``ccm run`` subprocesses lasting several seconds; the
+config check runs in-process (``ccm.cli.main``, as the reliability catalogue does). The resume
+test with the local launcher and stale temporary files is in tests/test_resume.py.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import fcntl
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -234,3 +236,85 @@ def test_stale_temporary_files_are_removed(tmp_path: Path) -> None:
     (tmp_path / "notes.tmp").write_text("not ours")  # not an atomic write's name
     assert sorted(clean_stale_temp(tmp_path)) == sorted(stale)
     assert not any(p.exists() for p in stale) and (tmp_path / "notes.tmp").exists()
+
+
+# --- 3. interrupts ------------------------------------------------------------------------
+
+
+def _trial_files(run: Path) -> list[Path]:
+    return list((run / "timeseries").rglob("trial_*.csv")) if run.is_dir() else []
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
+def test_a_signal_ends_a_run_with_one_line_and_an_interrupted_record(
+    tmp_path: Path, sig: signal.Signals
+) -> None:
+    run = tmp_path / "run"
+    proc = _start(["run", "experiment=smoke", "experiment.trials=500",
+                   "experiment.figures=false", f"hydra.run.dir={run}"], tmp_path)  # fmt: skip
+    _wait_for(lambda: len(_trial_files(run)) >= 2 or proc.poll() is not None)
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + sig, err
+    assert "Traceback" not in err + out
+    assert _lines(err) == [f"ccm: interrupted ({sig.name}); partial record in {run}"]
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["signal"] == sig.name
+    assert summary["error"].startswith(f"interrupted by {sig.name} after ")
+    assert 1 <= len(summary["trials"]) <= len(_trial_files(run))  # what had finished
+    assert not list(run.rglob(".lock")) and not list(run.rglob("*.tmp"))
+
+
+def _children(pid: int) -> set[int]:
+    out = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            out.add(int(stat.parent.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
+def test_a_signal_to_a_local_sweep_stops_its_workers(tmp_path: Path, sig: signal.Signals) -> None:
+    """``kill`` of the launching process alone (as a scheduler or ``kill PID`` does): its loky
+    workers record their jobs as interrupted and exit with it; one line, exit 128 + signal."""
+    sweep = tmp_path / "sweep"
+    proc = _start(["run", "-m", "experiment=smoke", "seed=0,1,2,3", "experiment.trials=500",
+                   "experiment.figures=false", "hydra/launcher=local",
+                   f"hydra.sweep.dir={sweep}"], tmp_path)  # fmt: skip
+    # two jobs under way, each with a trial done (its record follows its time series file)
+    _wait_for(lambda: sum(len(_trial_files(j)) >= 2 for j in sweep.glob("*")) >= 2)
+    workers = _children(proc.pid)
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + sig, err
+    assert "Traceback" not in err + out
+    assert _lines(err) == [f"ccm: interrupted ({sig.name}); partial records in {sweep}"]
+    time.sleep(0.5)
+    assert not [p for p in workers if _alive(p) and "popen_loky" in _cmdline(p)]
+    started = [j for j in sweep.glob("*") if (j / ".hydra").is_dir()]
+    assert len(started) == 2  # two workers, the first two jobs
+    for job in started:
+        summary = json.loads((job / "summary.json").read_text())
+        assert summary["status"] == "interrupted" and summary["signal"] == sig.name
+        assert len(summary["trials"]) >= 1
+    assert not list(sweep.rglob(".lock")) and not list(sweep.rglob("*.tmp"))
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_text().replace("\0", " ")
+    except OSError:
+        return ""
