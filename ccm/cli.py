@@ -12,11 +12,15 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import ccm
 from ccm import jobdir
 
 jobdir.register()  # hydra.sweep.subdir names jobs through it, here and in launcher workers
+
+if TYPE_CHECKING:
+    from omegaconf import DictConfig
 
 GROUPS = ("sim", "controller", "task", "experiment")
 EXIT_CONFIG = 2
@@ -28,6 +32,7 @@ usage: ccm <command> [args]
 commands:
   run [OVERRIDES]       run an experiment (Hydra overrides, e.g. experiment=smoke seed=3)
   run -m [OVERRIDES]    multirun sweep, e.g. ccm run -m experiment=smoke seed=0,1,2
+  run --force …         start over where a record is (it moves to <dir>.replaced-<time>)
   list                  the experiments, tasks, controllers and sims the config groups offer
   report DIR            report.md + report.html for the runs under DIR (a run or a sweep):
                         the papers' claims with verdicts (experiments/claims.yaml), metrics
@@ -265,31 +270,75 @@ def _one_line(exc: BaseException) -> str:
 
 
 def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's signature check
-    """The Hydra task function: run the experiment, or record the failure and exit non-zero."""
+    """The Hydra task function: lock and check the run directory (:mod:`ccm.run_record`),
+    run the experiment, or record the failure or interruption and exit non-zero."""
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
-    from threadpoolctl import threadpool_limits
 
-    from ccm.errors import ConfigError, SimulationDiverged
-    from ccm.records import write_json_atomic
-    from ccm.runner import failed_summary, run_experiment
+    from ccm.interrupts import RunInterrupted, job_signals
+    from ccm.run_record import RecordRefused
+    from ccm.sweep_check import mark_refused
 
     hc = HydraConfig.get()
     out_dir = Path(hc.runtime.output_dir)
-    task_overrides = list(hc.overrides.task)
-    done = _finished(out_dir)
-    if done is not None:  # resume: a finished run is never redone or overwritten
-        print(f"ccm: {done.get('experiment')} already ok -> {out_dir} (skipped; delete the "
-              "directory to run it again)")  # fmt: skip
-        return
+    multirun = hc.mode == RunMode.MULTIRUN
+    try:
+        with job_signals(multirun):
+            _open_and_run(cfg, out_dir, multirun)
+    except RecordRefused as exc:
+        print(f"ccm: error: {exc}", file=sys.stderr)
+        if not multirun:
+            sys.exit(EXIT_CONFIG)
+        mark_refused(Path(hc.sweep.dir), out_dir, str(exc))
+    except RunInterrupted as exc:
+        if multirun:  # ccm run prints the line once the sweep has stopped
+            raise
+        print(f"ccm: interrupted ({exc.name}); partial record in {out_dir}", file=sys.stderr)
+        sys.exit(exc.exit_code)
 
+
+def _open_and_run(cfg: DictConfig, out_dir: Path, multirun: bool) -> None:
+    """Open the run directory's record (locked, config checked), then skip a finished run or
+    write ``.hydra/`` and run."""
+    from hydra.core.hydra_config import HydraConfig
+
+    from ccm.run_record import forced, ok_summary, open_record
+
+    with open_record(out_dir, cfg, force=forced()) as record:
+        if record.replaced is not None:
+            print(f"ccm: --force: the previous record moved aside -> {record.replaced}")
+        done = ok_summary(out_dir)
+        if done is not None:  # resume: a finished run is never redone or overwritten
+            print(f"ccm: {done.get('experiment')} already ok -> {out_dir} (skipped; --force "
+                  "runs it again)")  # fmt: skip
+            return
+        hc = HydraConfig.get()
+        record.write_hydra(HydraConfig.instance().cfg, hc.overrides.task)
+        _run_locked(cfg, out_dir, list(hc.overrides.task), multirun)
+
+
+def _run_locked(cfg: DictConfig, out_dir: Path, task_overrides: list[str], multirun: bool) -> None:
+    """Run the experiment into the locked ``out_dir``; a failure or an interruption is written
+    to summary.json (status ``failed`` / ``interrupted``) before it ends the run."""
+    from threadpoolctl import threadpool_limits
+
+    from ccm.errors import ConfigError, SimulationDiverged
+    from ccm.interrupts import RunInterrupted, record_interrupt
+    from ccm.records import write_json_atomic
+    from ccm.runner import failed_summary, run_experiment
+
+    finished: list[dict] = []  # the trial loop's records, kept if the run is interrupted
     try:
         # one BLAS thread per job (cfg.blas_threads): parallel sweep workers must not
         # oversubscribe the cores, and the same count everywhere keeps results identical
         with threadpool_limits(limits=int(cfg.get("blas_threads") or 1)):
             summary = run_experiment(
-                cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir
-            )
+                cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir,
+                finished=finished,
+            )  # fmt: skip
+    except RunInterrupted as exc:
+        record_interrupt(out_dir, cfg, exc, finished)
+        raise
     except Exception as exc:
         expected = isinstance(exc, ConfigError | SimulationDiverged)
         message = str(exc) if expected else f"{type(exc).__name__}: {exc}"
@@ -297,19 +346,10 @@ def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's si
         if not expected and os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise
         print(f"ccm: run failed: {message} [{out_dir}]", file=sys.stderr)
-        if hc.mode == RunMode.MULTIRUN:  # Hydra goes on; SweepCheck makes cmd_run exit 1
+        if multirun:  # Hydra goes on; SweepCheck makes cmd_run exit 1
             return
         sys.exit(EXIT_FAILED)
     _print_summary(summary, out_dir)
-
-
-def _finished(out_dir: Path) -> dict | None:
-    """The summary of a run directory that already holds an ``ok`` run, else None."""
-    try:
-        summary = json.loads((out_dir / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
-        return None
-    return summary if isinstance(summary, dict) and summary.get("status") == "ok" else None
 
 
 def _print_summary(summary: dict, out_dir: Path) -> None:
@@ -334,12 +374,29 @@ _SHOWN = (
 
 
 def cmd_run(args: Sequence[str]) -> int:
-    import hydra
+    """``ccm run``: precheck, then the Hydra app; SIGINT/SIGTERM end it with one line."""
+    from ccm import interrupts, run_record, sweep_check
 
     args = list(args)
     if "--verbose" in args:
         args.remove("--verbose")
         os.environ["HYDRA_FULL_ERROR"] = "1"
+    sweep_check.ACTIVE.clear()
+    try:
+        with run_record.forcing("--force" in args), interrupts.launcher_env():
+            with interrupts.interrupts_raise(interrupts.stop_local_workers):
+                return _run_app([a for a in args if a != "--force"])
+    except interrupts.RunInterrupted as exc:
+        where = sweep_check.ACTIVE.get("sweep_dir")
+        tail = f"; partial records in {where}" if where else ""
+        print(f"ccm: interrupted ({exc.name}){tail}", file=sys.stderr)
+        return exc.exit_code
+
+
+def _run_app(args: list[str]) -> int:
+    """Precheck the overrides (exit 2 on a bad one), then run the Hydra app."""
+    import hydra
+
     multirun = "-m" in args or "--multirun" in args
     flags = {"-m", "--multirun"}
     info_flags = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve"}

@@ -348,6 +348,7 @@ def run_experiment(
     compose: ComposeFn,
     out_dir: Path,
     show_progress: bool = True,
+    finished: list[dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """Run every condition × phase × trial of ``cfg.experiment``; write the run directory.
 
@@ -356,7 +357,9 @@ def run_experiment(
     to ``state/<condition>.json`` (module docstring; ``init_from`` loads it).
     ``conditions.<name>`` in the summary averages the trials of the *last* phase; every
     trial is in ``trials``.
-    Returns the summary dict (also written to ``out_dir/summary.json`` last).
+    Returns the summary dict (also written to ``out_dir/summary.json`` last). Each trial's
+    record is appended to ``finished``, if given, as soon as the trial ends (what an
+    interrupted run's summary keeps).
     """
     kind = cfg.experiment.get("kind", "trials")
     if kind in ANALYSES:  # an analysis, not a trial loop: its module writes the run directory
@@ -386,7 +389,7 @@ def run_experiment(
         for ph, comp in phases
     )
     bar = _progress_bar(total_steps, cfg.experiment.name, show_progress)
-    trials_out: list[dict[str, Any]] = []
+    trials_out: list[dict[str, Any]] = [] if finished is None else finished
     logs: dict[str, list[dict[str, np.ndarray]]] = {}
     wall0 = time.perf_counter()
     sim_time = 0.0
