@@ -10,10 +10,17 @@ from __future__ import annotations
 import json
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import ccm
+from ccm import jobdir
+
+jobdir.register()  # hydra.sweep.subdir names jobs through it, here and in launcher workers
+
+if TYPE_CHECKING:
+    from omegaconf import DictConfig
 
 GROUPS = ("sim", "controller", "task", "experiment")
 EXIT_CONFIG = 2
@@ -25,6 +32,7 @@ usage: ccm <command> [args]
 commands:
   run [OVERRIDES]       run an experiment (Hydra overrides, e.g. experiment=smoke seed=3)
   run -m [OVERRIDES]    multirun sweep, e.g. ccm run -m experiment=smoke seed=0,1,2
+  run --force …         start over where a record is (it moves to <dir>.replaced-<time>)
   list                  the experiments, tasks, controllers and sims the config groups offer
   report DIR            report.md + report.html for the runs under DIR (a run or a sweep):
                         the papers' claims with verdicts (experiments/claims.yaml), metrics
@@ -56,11 +64,16 @@ def group_options(group: str) -> list[str]:
 
 
 def describe(group: str, option: str) -> str:
-    """The ``description`` field of a group option, or its first comment line."""
-    from omegaconf import OmegaConf
+    """The ``description`` field of a group option, or its first comment line; a file whose
+    top level is not a mapping raises ConfigError naming it."""
+    from omegaconf import DictConfig, OmegaConf
+
+    from ccm.errors import ConfigError
 
     path = config_dir() / group / f"{option}.yaml"
     node = OmegaConf.load(path)
+    if not isinstance(node, DictConfig):
+        raise ConfigError(str(path), "the top level is a list; a config is a mapping of keys")
     desc = OmegaConf.select(node, "description", default=None)
     if desc is None:
         desc = OmegaConf.select(node, f"{group}.description", default=None)
@@ -74,15 +87,18 @@ def describe(group: str, option: str) -> str:
 def cmd_list() -> int:
     import yaml
 
+    from ccm.errors import ConfigError
+
     broken = 0
     for group in ("experiment", "task", "controller", "sim"):
         print(f"{group}:")
         for opt in group_options(group):
             try:
                 text = describe(group, opt)
-            except yaml.YAMLError as exc:  # a broken option is named, the rest still listed
+            except (yaml.YAMLError, ConfigError) as exc:  # named, the rest still listed
                 broken += 1
-                text = f"(unreadable: {_yaml_line(exc)})"
+                line = str(exc) if isinstance(exc, ConfigError) else _yaml_line(exc)
+                text = f"(unreadable: {line})"
             print(f"  {opt:<28} {text}")
     return EXIT_CONFIG if broken else 0
 
@@ -115,6 +131,8 @@ def _combos(overrides: Sequence[str], multirun: bool) -> list[list[str]]:
                 raise ValueError(f"{ov.input_line}: sweeps need `ccm run -m`")
             prefix = ov.input_line.split(ov.key_or_group, 1)[0]
             values = [f"{prefix}{ov.get_key_element()}={v}" for v in ov.sweep_string_iterator()]
+            if not values:  # e.g. range(0,0): Hydra would launch no job
+                raise ValueError(f"{ov.input_line}: the sweep is empty; give at least one value")
             base.append(values[0])
             variants.append((i, values[1:]))
         else:
@@ -137,15 +155,10 @@ def _check_groups(overrides: Sequence[str]) -> str | None:
 
 
 def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
-    """Compose each override combination and build its components; return an error line."""
-    import yaml
-    from hydra import compose, initialize_config_dir
+    """Compose each override combination and build its components, then check Hydra's own
+    settings (output directory, launcher); return an error line."""
+    from hydra import initialize_config_dir
     from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
-
-    from ccm.errors import ConfigError
-    from ccm.metrics import check_extra_metrics
-    from ccm.runner import check_experiment, plan_experiment
 
     try:
         combos = _combos(overrides, multirun)
@@ -157,28 +170,72 @@ def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
             bad = _check_groups(combo)
             if bad:
                 return bad
-            try:
-                cfg = compose("config", overrides=combo)
-                settings = check_experiment(cfg)
-                check_extra_metrics(cfg)
-                # the seed changes no component: build each plan once per seed sweep
-                unseeded = tuple(o for o in combo if o.partition("=")[0].lstrip("+~") != "seed")
-                if unseeded in planned:
-                    continue
-                planned.add(unseeded)
-                plan_experiment(cfg, lambda x, c=combo: _compose_extra(c, x), settings["trials"])
-            except ConfigError as exc:
-                return str(exc)
-            except (HydraException, OmegaConfBaseException, ValueError, TypeError) as exc:
-                return _one_line(exc)
-            except yaml.YAMLError as exc:
-                if os.environ.get("HYDRA_FULL_ERROR") == "1":
-                    raise
-                return _yaml_line(exc)
-            except Exception as exc:  # a bug, not a user error: one line unless --verbose
-                if os.environ.get("HYDRA_FULL_ERROR") == "1":
-                    raise
-                return f"{type(exc).__name__}: {_one_line(exc)}"
+            err = _guarded(lambda c=combo: _check_combo(c, planned))
+            if err:
+                return err
+        return _guarded(lambda: _check_hydra(overrides, combos[0], multirun))
+
+
+def _check_combo(combo: list[str], planned: set[tuple[str, ...]]) -> None:
+    """Compose one override combination and build its plan (once per set of overrides
+    other than the seed, which changes no component); raise on bad input."""
+    from hydra import compose
+
+    from ccm.config_check import check_trial_steps
+    from ccm.metrics import check_extra_metrics
+    from ccm.runner import check_experiment, plan_experiment
+
+    cfg = compose("config", overrides=combo)
+    settings = check_experiment(cfg)
+    check_extra_metrics(cfg)
+    unseeded = tuple(o for o in combo if o.partition("=")[0].lstrip("+~") != "seed")
+    if unseeded in planned:
+        return
+    planned.add(unseeded)
+    plan = plan_experiment(cfg, lambda x: _compose_extra(combo, x), settings["trials"])
+    if cfg.experiment.get("kind", "trials") == "trials":
+        check_trial_steps(plan, settings)
+
+
+def _check_hydra(overrides: Sequence[str], base: list[str], multirun: bool) -> None:
+    """Compose the base combination with its ``hydra`` overrides (sweeps left out) and check
+    the run or sweep directory, the job name and the launcher."""
+    from hydra import compose
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from ccm.config_check import check_hydra
+
+    parsed = OverridesParser.create().parse_overrides(list(overrides))
+    own = [
+        ov.input_line for ov in parsed
+        if ov.key_or_group.startswith("hydra") and not ov.is_sweep_override()
+    ]  # fmt: skip
+    cfg = compose("config", overrides=[*base, *own], return_hydra_config=True)
+    check_hydra(cfg.hydra, multirun)
+
+
+def _guarded(check: Callable[[], None]) -> str | None:
+    """Run ``check``; a user error becomes its one line (a bug too, unless --verbose)."""
+    import yaml
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from ccm.errors import ConfigError
+
+    try:
+        check()
+    except ConfigError as exc:
+        return str(exc)
+    except (HydraException, OmegaConfBaseException, ValueError, TypeError) as exc:
+        return _one_line(exc)
+    except yaml.YAMLError as exc:
+        if os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        return _yaml_line(exc)
+    except Exception as exc:  # a bug, not a user error: one line unless --verbose
+        if os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        return f"{type(exc).__name__}: {_one_line(exc)}"
     return None
 
 
@@ -213,31 +270,75 @@ def _one_line(exc: BaseException) -> str:
 
 
 def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's signature check
-    """The Hydra task function: run the experiment, or record the failure and exit non-zero."""
+    """The Hydra task function: lock and check the run directory (:mod:`ccm.run_record`),
+    run the experiment, or record the failure or interruption and exit non-zero."""
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
-    from threadpoolctl import threadpool_limits
 
-    from ccm.errors import ConfigError, SimulationDiverged
-    from ccm.records import write_json_atomic
-    from ccm.runner import failed_summary, run_experiment
+    from ccm.interrupts import RunInterrupted, job_signals
+    from ccm.run_record import RecordRefused
+    from ccm.sweep_check import mark_refused
 
     hc = HydraConfig.get()
     out_dir = Path(hc.runtime.output_dir)
-    task_overrides = list(hc.overrides.task)
-    done = _finished(out_dir)
-    if done is not None:  # resume: a finished run is never redone or overwritten
-        print(f"ccm: {done.get('experiment')} already ok -> {out_dir} (skipped; delete the "
-              "directory to run it again)")  # fmt: skip
-        return
+    multirun = hc.mode == RunMode.MULTIRUN
+    try:
+        with job_signals(multirun):
+            _open_and_run(cfg, out_dir, multirun)
+    except RecordRefused as exc:
+        print(f"ccm: error: {exc}", file=sys.stderr)
+        if not multirun:
+            sys.exit(EXIT_CONFIG)
+        mark_refused(Path(hc.sweep.dir), out_dir, str(exc))
+    except RunInterrupted as exc:
+        if multirun:  # ccm run prints the line once the sweep has stopped
+            raise
+        print(f"ccm: interrupted ({exc.name}); partial record in {out_dir}", file=sys.stderr)
+        sys.exit(exc.exit_code)
 
+
+def _open_and_run(cfg: DictConfig, out_dir: Path, multirun: bool) -> None:
+    """Open the run directory's record (locked, config checked), then skip a finished run or
+    write ``.hydra/`` and run."""
+    from hydra.core.hydra_config import HydraConfig
+
+    from ccm.run_record import forced, ok_summary, open_record
+
+    with open_record(out_dir, cfg, force=forced()) as record:
+        if record.replaced is not None:
+            print(f"ccm: --force: the previous record moved aside -> {record.replaced}")
+        done = ok_summary(out_dir)
+        if done is not None:  # resume: a finished run is never redone or overwritten
+            print(f"ccm: {done.get('experiment')} already ok -> {out_dir} (skipped; --force "
+                  "runs it again)")  # fmt: skip
+            return
+        hc = HydraConfig.get()
+        record.write_hydra(HydraConfig.instance().cfg, hc.overrides.task)
+        _run_locked(cfg, out_dir, list(hc.overrides.task), multirun)
+
+
+def _run_locked(cfg: DictConfig, out_dir: Path, task_overrides: list[str], multirun: bool) -> None:
+    """Run the experiment into the locked ``out_dir``; a failure or an interruption is written
+    to summary.json (status ``failed`` / ``interrupted``) before it ends the run."""
+    from threadpoolctl import threadpool_limits
+
+    from ccm.errors import ConfigError, SimulationDiverged
+    from ccm.interrupts import RunInterrupted, record_interrupt
+    from ccm.records import write_json_atomic
+    from ccm.runner import failed_summary, run_experiment
+
+    finished: list[dict] = []  # the trial loop's records, kept if the run is interrupted
     try:
         # one BLAS thread per job (cfg.blas_threads): parallel sweep workers must not
         # oversubscribe the cores, and the same count everywhere keeps results identical
         with threadpool_limits(limits=int(cfg.get("blas_threads") or 1)):
             summary = run_experiment(
-                cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir
-            )
+                cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir,
+                finished=finished,
+            )  # fmt: skip
+    except RunInterrupted as exc:
+        record_interrupt(out_dir, cfg, exc, finished)
+        raise
     except Exception as exc:
         expected = isinstance(exc, ConfigError | SimulationDiverged)
         message = str(exc) if expected else f"{type(exc).__name__}: {exc}"
@@ -245,19 +346,10 @@ def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's si
         if not expected and os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise
         print(f"ccm: run failed: {message} [{out_dir}]", file=sys.stderr)
-        if hc.mode == RunMode.MULTIRUN:  # Hydra goes on; SweepCheck makes cmd_run exit 1
+        if multirun:  # Hydra goes on; SweepCheck makes cmd_run exit 1
             return
         sys.exit(EXIT_FAILED)
     _print_summary(summary, out_dir)
-
-
-def _finished(out_dir: Path) -> dict | None:
-    """The summary of a run directory that already holds an ``ok`` run, else None."""
-    try:
-        summary = json.loads((out_dir / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
-        return None
-    return summary if isinstance(summary, dict) and summary.get("status") == "ok" else None
 
 
 def _print_summary(summary: dict, out_dir: Path) -> None:
@@ -282,12 +374,29 @@ _SHOWN = (
 
 
 def cmd_run(args: Sequence[str]) -> int:
-    import hydra
+    """``ccm run``: precheck, then the Hydra app; SIGINT/SIGTERM end it with one line."""
+    from ccm import interrupts, run_record, sweep_check
 
     args = list(args)
     if "--verbose" in args:
         args.remove("--verbose")
         os.environ["HYDRA_FULL_ERROR"] = "1"
+    sweep_check.ACTIVE.clear()
+    try:
+        with run_record.forcing("--force" in args), interrupts.launcher_env():
+            with interrupts.interrupts_raise(interrupts.stop_local_workers):
+                return _run_app([a for a in args if a != "--force"])
+    except interrupts.RunInterrupted as exc:
+        where = sweep_check.ACTIVE.get("sweep_dir")
+        tail = f"; partial records in {where}" if where else ""
+        print(f"ccm: interrupted ({exc.name}){tail}", file=sys.stderr)
+        return exc.exit_code
+
+
+def _run_app(args: list[str]) -> int:
+    """Precheck the overrides (exit 2 on a bad one), then run the Hydra app."""
+    import hydra
+
     multirun = "-m" in args or "--multirun" in args
     flags = {"-m", "--multirun"}
     info_flags = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve"}
@@ -323,18 +432,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         return cmd_list()
     if argv[0] == "run":
         return cmd_run(argv[1:])
-    if argv[0] == "report":
+    if argv[0] in ("report", "paper"):
         from ccm.errors import ConfigError
+        from ccm.paper import main as paper
         from ccm.report import main as report
 
         try:
-            return report(argv[1:])
+            return (report if argv[0] == "report" else paper)(argv[1:])
         except ConfigError as exc:
             return _fail(str(exc), EXIT_CONFIG)
-    if argv[0] == "paper":
-        from ccm.paper import main as paper
-
-        return paper(argv[1:])
     return _fail(
         f"unknown command {argv[0]!r}; allowed: run, list, report, paper, --help", EXIT_CONFIG
     )

@@ -7,6 +7,7 @@ print one line and exit non-zero (the README's contract for bad input).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
@@ -81,6 +82,32 @@ def check_int_nonneg(key: str, value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
         raise ConfigError(key, f"must be an integer >= 0, got {value!r}")
     return int(value)
+
+
+def check_bool(key: str, value: Any) -> bool:
+    """Return ``value`` if it is a bool (YAML ``true``/``false``): ``no``, ``off`` or ``2``
+    reach a config as a string or a number, which Python would take as true."""
+    if not isinstance(value, bool):
+        raise ConfigError(key, f"must be true or false, got {value!r}")
+    return value
+
+
+#: a name that becomes a file or directory name: no '/', no leading '.' (so never '..')
+_FILE_NAME = re.compile(r"[A-Za-z0-9_\-][A-Za-z0-9_.\-]*")
+NAME_MAX = 255  # bytes in one path component (Linux, macOS)
+
+
+def check_file_name(key: str, value: Any) -> str:
+    """Return ``value`` if it can name a directory: letters, digits, ``_``, ``-`` and ``.``
+    (not first), at most :data:`NAME_MAX` characters."""
+    if not isinstance(value, str) or not _FILE_NAME.fullmatch(value) or len(value) > NAME_MAX:
+        text = repr(value)
+        shown = text if len(text) <= 60 else f"{text[:40]}… ({len(text)} characters)"
+        raise ConfigError(
+            key, f"may use letters, digits, '_', '-' and '.' (not first), at most {NAME_MAX} "
+            f"characters; got {shown}",
+        )  # fmt: skip
+    return value
 
 
 def check_choice(key: str, value: Any, allowed: Iterable[str]) -> str:

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from ccm.config_check import check_output_dir
 from ccm.records import write_json_atomic
 
 # the paper experiments, longest first (job-seconds measured 2026-12-01 on 2 cores, for
@@ -91,6 +92,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"ccm paper: --lanes must be >= 1, got {args.lanes}", file=sys.stderr)
         return 2
     names = [e for e in PAPER_EXPERIMENTS if not args.experiments or e in args.experiments]
+    check_output_dir("paper --out", args.out)  # a file, or under one: one line (issue #19)
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     print(f"ccm paper: {len(names)} sweeps, {args.lanes} at a time -> {args.out}", flush=True)

@@ -24,12 +24,14 @@ import base64
 import html
 import json
 import math
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from ccm.claim_stats import t95
 from ccm.claims import Verdict, evaluate, load_claims
+from ccm.config_check import check_output_dir
 from ccm.errors import ConfigError
 from ccm.records import write_atomic
 
@@ -43,19 +45,58 @@ def collect(root: Path) -> list[tuple[Path, dict[str, Any]]]:
     if not root.is_dir():
         raise ConfigError("report.dir", f"{root} is not a directory")
     runs = []
+    skipped = 0
     for path in sorted(root.rglob("summary.json")):
         try:
             summary = json.loads(path.read_text(encoding="utf-8"))
-            runs.append((path.parent, with_run_info(path.parent, summary)))
         except (OSError, json.JSONDecodeError) as exc:
             runs.append((path.parent, {"status": "failed", "error": f"unreadable: {exc}"}))
+            continue
+        problem = summary_problem(summary)
+        if problem is not None:  # valid JSON of another shape: nothing in it can be trusted
+            print(f"ccm: note: skipped {path}: {problem}", file=sys.stderr)
+            skipped += 1
+            continue
+        runs.append((path.parent, with_run_info(path.parent, summary)))
     for cfg in sorted(root.rglob(".hydra/config.yaml")):
         run = cfg.parent.parent
         if not (run / "summary.json").is_file():
             runs.append((run, _unfinished(cfg)))
     if not runs:
-        raise ConfigError("report.dir", f"no summary.json under {root}")
+        what = f"usable summary.json under {root} ({skipped} malformed, skipped)"
+        raise ConfigError("report.dir", f"no {what if skipped else f'summary.json under {root}'}")
     return sorted(runs, key=lambda r: str(r[0]))
+
+
+_JSON_TYPES = {dict: "an object", list: "an array", str: "a string", bool: "a boolean"}
+
+
+def _json_type(value: Any) -> str:
+    if value is None:
+        return "null"
+    return _JSON_TYPES.get(type(value), "a number" if isinstance(value, int | float) else "?")
+
+
+def summary_problem(summary: Any) -> str | None:
+    """Why a parsed summary.json cannot be reported (the fields the report reads have the
+    wrong JSON type), or None: an object whose ``conditions`` map names to objects, whose
+    ``trials`` is a list of objects, ``run_info`` an object and ``experiment`` a string."""
+    if not isinstance(summary, dict):
+        return f"{_json_type(summary)}, not an object"
+    checks = (("conditions", dict, dict), ("trials", list, dict), ("run_info", dict, None))
+    for key, kind, item in checks:
+        value = summary.get(key)
+        if value is None:
+            continue
+        if not isinstance(value, kind):
+            return f"'{key}' is {_json_type(value)}, not {_JSON_TYPES[kind]}"
+        items = value.items() if isinstance(value, dict) else enumerate(value)
+        bad = next(((k, v) for k, v in items if item and not isinstance(v, item)), None)
+        if bad is not None:
+            return f"'{key}' entry {bad[0]!r} is {_json_type(bad[1])}, not an object"
+    if not isinstance(summary.get("experiment"), str | None):
+        return f"'experiment' is {_json_type(summary['experiment'])}, not a string"
+    return None
 
 
 RUN_INFO_METRICS = (
@@ -277,8 +318,13 @@ def main(argv: Sequence[str]) -> int:
     if len(args) != 1:
         raise ConfigError("report", "usage: ccm report DIR [--claims FILE]")
     root = Path(args[0])
+    if root.is_dir():  # before the work: a report it cannot write is one line, not a traceback
+        check_output_dir("report.dir", root)
     md, page = render(root, claims)
-    write_atomic(root / "report.md", md)
-    write_atomic(root / "report.html", page)
+    try:
+        write_atomic(root / "report.md", md)
+        write_atomic(root / "report.html", page)
+    except OSError as exc:
+        raise ConfigError("report.dir", f"cannot write the report: {exc}") from None
     print(f"ccm: report -> {root / 'report.html'} and report.md")
     return 0

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import gc
 import math
-import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -26,12 +25,16 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
+from ccm.config_check import check_trial_steps, trial_duration
 from ccm.contact_metrics import contact_table
 from ccm.control.base import Controller
 from ccm.control.registry import make_controller
 from ccm.errors import (
     ConfigError,
     SimulationDiverged,
+    check_bool,
+    check_file_name,
+    check_int_nonneg,
     check_int_positive,
     check_nonneg,
     check_positive,
@@ -44,7 +47,7 @@ from ccm.metrics import (
     trial_metrics,
 )
 from ccm.records import TrialRecorder, write_atomic, write_json_atomic
-from ccm.sim import make_sim
+from ccm.sim import BACKENDS, backend, make_sim
 from ccm.sim.base import Simulator, check_state_finite
 from ccm.tasks.task import Task, load_task
 from ccm.types import Observation, StepInfo
@@ -52,7 +55,6 @@ from ccm.types import Observation, StepInfo
 #: compose(extra_overrides) -> config; provided by the CLI (Hydra compose API)
 ComposeFn = Callable[[Sequence[str]], DictConfig]
 
-_NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 #: experiment.kind -> "module:function(cfg, compose, out_dir) -> summary" for analyses that
 #: are not the condition x phase x trial loop
 ANALYSES = {
@@ -120,8 +122,7 @@ def resolve_conditions(cfg: DictConfig, compose: ComposeFn) -> list[Condition]:
     out = []
     for name, overrides in spec.items():
         key = f"experiment.conditions.{name}"
-        if not _NAME_RE.match(str(name)):
-            raise ConfigError(key, "condition names may use letters, digits, '_', '-', '.'")
+        check_file_name(key, str(name))  # a directory of timeseries/
         if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
             raise ConfigError(key, "must be a list of override strings, e.g. [controller=x]")
         out.append(Condition(name=str(name), cfg=compose(list(overrides)), overrides=overrides))
@@ -141,8 +142,7 @@ def resolve_phases(cfg: DictConfig, trials: int) -> list[Phase]:
         if not isinstance(ph, dict) or set(ph) - {"name", "trials", "overrides"}:
             raise ConfigError(key, "must be a mapping with keys name, trials, overrides")
         name = str(ph.get("name", f"phase{i}"))
-        if not _NAME_RE.match(name):
-            raise ConfigError(f"{key}.name", "may use letters, digits, '_', '-', '.'")
+        check_file_name(f"{key}.name", name)
         overrides = ph.get("overrides") or []
         if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
             raise ConfigError(f"{key}.overrides", "must be a list of override strings")
@@ -205,13 +205,24 @@ def build_components(cfg: DictConfig) -> Components:
     orientation = plain(cfg.task.get("orientation"))
     if orientation and cfg.task.get("dim") == 3:  # the 3D start pose includes the tool's quaternion
         start += list(orientation)
+    # before the scene is parsed: a 2-D scene read as a 3-D one fails on an "unknown key"
+    check_dims(cfg.task.get("dim"), backend(cfg.sim.get("name")).dim, cfg)
     sim = make_sim(plain(cfg.sim), plain(cfg.task.get("scene", {})), start)
     task = load_task(cfg.task, sim.control_dt)
-    if task.dim != sim.dim:
-        raise ConfigError("task.dim", f"task is {task.dim}-D but sim={cfg.sim.name} is {sim.dim}-D")
+    check_dims(task.dim, sim.dim, cfg)
     controller = make_controller(plain(cfg.controller))
     controller.reset(task.dim, sim.control_dt)  # validates dimension-dependent gains
     return Components(sim=sim, task=task, controller=controller)
+
+
+def check_dims(task_dim: Any, sim_dim: int, cfg: DictConfig) -> None:
+    """A task runs only on a simulator of its dimension (``task.dim``)."""
+    if task_dim in (2, 3) and task_dim != sim_dim:
+        other = next(n for n in BACKENDS if backend(n).dim == task_dim)
+        raise ConfigError(
+            "task.dim", f"task={cfg.task.get('name')} is a {task_dim}-D task, for sim={other}; "
+            f"sim={cfg.sim.get('name')} simulates {sim_dim}-D tasks",
+        )  # fmt: skip
 
 
 def trial_seed(seed: int, trial: int) -> int:
@@ -226,7 +237,7 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
     if kind != "trials" and kind not in ANALYSES:
         allowed = ", ".join(("trials", *ANALYSES))
         raise ConfigError("experiment.kind", f"must be one of {allowed}, got {kind!r}")
-    fast = bool(exp.get("fast", False))
+    fast = check_bool("experiment.fast", exp.get("fast", False))
     trials = check_int_positive("experiment.trials", exp.get("trials", 1))
     max_time = exp.get("max_time_s")
     if max_time is not None:
@@ -237,8 +248,8 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
         )
         fast_time = check_positive("experiment.fast_time_s", exp.get("fast_time_s", 0.5))
         max_time = fast_time if max_time is None else min(max_time, fast_time)
-    if not isinstance(cfg.get("seed"), int) or isinstance(cfg.get("seed"), bool):
-        raise ConfigError("seed", f"must be an integer, got {cfg.get('seed')!r}")
+    check_int_nonneg("seed", cfg.get("seed"))  # numpy's SeedSequence takes no negative seed
+    check_file_name("experiment.name", exp.get("name"))  # a directory of hydra.run/sweep.dir
     return {
         "trials": trials,
         "max_time_s": max_time,
@@ -247,7 +258,7 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
         "completion_tol_m": check_positive(
             "metrics.completion_tol_m", cfg.metrics.completion_tol_m
         ),
-        "figures": bool(exp.get("figures", True)),
+        "figures": check_bool("experiment.figures", exp.get("figures", True)),
         "fast": fast,
         "max_retime_s": check_nonneg("experiment.max_retime_s", exp.get("max_retime_s", 60.0)),
     }
@@ -337,6 +348,7 @@ def run_experiment(
     compose: ComposeFn,
     out_dir: Path,
     show_progress: bool = True,
+    finished: list[dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """Run every condition × phase × trial of ``cfg.experiment``; write the run directory.
 
@@ -345,7 +357,9 @@ def run_experiment(
     to ``state/<condition>.json`` (module docstring; ``init_from`` loads it).
     ``conditions.<name>`` in the summary averages the trials of the *last* phase; every
     trial is in ``trials``.
-    Returns the summary dict (also written to ``out_dir/summary.json`` last).
+    Returns the summary dict (also written to ``out_dir/summary.json`` last). Each trial's
+    record is appended to ``finished``, if given, as soon as the trial ends (what an
+    interrupted run's summary keeps).
     """
     kind = cfg.experiment.get("kind", "trials")
     if kind in ANALYSES:  # an analysis, not a trial loop: its module writes the run directory
@@ -358,14 +372,14 @@ def run_experiment(
         raise ConfigError("experiment.kind", f"must be one of {allowed}, got {kind!r}")
     settings = check_experiment(cfg)
     plan = plan_experiment(cfg, compose, settings["trials"])
+    check_trial_steps(plan, settings)
     extra = check_extra_metrics(cfg)
 
     def n_trials(ph: Phase) -> int:
         return min(ph.trials, settings["trials"]) if settings["fast"] else ph.trials
 
     def duration(comp: Components) -> float:
-        d = comp.task.pattern.duration + settings["settle_time_s"]
-        return d if settings["max_time_s"] is None else min(d, settings["max_time_s"])
+        return trial_duration(comp.task.pattern.duration, settings)
 
     # a truncated trial (max_time_s, fast) is never lengthened by re-timing
     extension = 0.0 if settings["max_time_s"] is not None else settings["max_retime_s"]
@@ -375,7 +389,7 @@ def run_experiment(
         for ph, comp in phases
     )
     bar = _progress_bar(total_steps, cfg.experiment.name, show_progress)
-    trials_out: list[dict[str, Any]] = []
+    trials_out: list[dict[str, Any]] = [] if finished is None else finished
     logs: dict[str, list[dict[str, np.ndarray]]] = {}
     wall0 = time.perf_counter()
     sim_time = 0.0

@@ -33,6 +33,8 @@ SMOKE = ["experiment=smoke"]
 # one condition, no phases or condition overrides: the GP-MPC controller as the command line sets it
 GP_MPC = ["experiment=single", "controller=gp_mpc", "task=mpc_contact", "experiment.fast=true"]
 MPC_CONTACT = ["experiment=mpc_contact"]
+SINGLE = ["experiment=single"]  # one condition: an error line has no "(condition …)"
+TABLE_WALL = ["experiment=single", "sim=pybullet3d", "task=table_wall"]
 
 
 def case(
@@ -279,6 +281,84 @@ CATALOGUE = [
         SMOKE,
         "init_from=/nonexistent/dir",
     ),
+    # issue #19: trials shorter than a few control steps
+    case(
+        "trial-shorter-than-steps-dt",
+        "task.pattern: a trial of 0.9 s (pattern + experiment.settle_time_s) is 0 control steps "
+        "of 1 s (sim.dt",
+        SINGLE,
+        "sim.dt=1.0",
+    ),
+    case(
+        "trial-shorter-than-steps-max-time",
+        "experiment.max_time_s: a trial of 1e-09 s is 0 control steps",
+        SINGLE,
+        "experiment.max_time_s=1e-9",
+    ),
+    # booleans (tests/test_reliability.py::test_every_boolean_field_is_validated: all of them)
+    case(
+        "bool-fast-no",
+        "experiment.fast: must be true or false, got 'no'",
+        SINGLE,
+        "experiment.fast=no",
+    ),
+    case(
+        "bool-fast-maybe", "experiment.fast: must be true or false", SINGLE, "experiment.fast=maybe"
+    ),
+    case(
+        "bool-fast-2", "experiment.fast: must be true or false, got 2", SINGLE, "experiment.fast=2"
+    ),
+    case(
+        "bool-figures-off",
+        "experiment.figures: must be true or false",
+        SINGLE,
+        "experiment.figures=off",
+    ),
+    # names that become directories
+    case("name-dotdot", "experiment.name: may use letters", SINGLE, "experiment.name=../../x"),
+    case("name-slash", "experiment.name: may use letters", SINGLE, "experiment.name=a/b"),
+    case("name-long", "experiment.name: may use letters", SINGLE, f"experiment.name={'x' * 300}"),
+    case("job-name-long", "hydra.job.name: ", SINGLE, f"hydra.job.name={'x' * 300}"),
+    # impossible starts
+    case(
+        "start-in-box-2d",
+        "task.start: the end-effector at [0, 0] overlaps task.scene.boxes[0]",
+        SINGLE,
+        "task.scene.boxes=[{center: [0.01, 0], size: [0.2, 0.2]}]",
+    ),
+    case(
+        "start-in-box-2d-rotated",
+        "task.start: the end-effector at [0.07, 0] overlaps task.scene.boxes[0]",
+        SINGLE,
+        "task.start=[0.07, 0, 0.785]",
+        "task.scene.boxes=[{center: [0.1, 0], size: [0.05, 0.05]}]",
+    ),
+    case(
+        "start-in-box-3d",
+        "task.start: the tool point [0.65, 0, 0.05] is inside task.scene.boxes[0]",
+        TABLE_WALL,
+        "task.start=[0.65, 0, 0.05]",
+    ),
+    case(
+        "start-in-table-3d",
+        "task.start: the tool point [0.48, -0.1, 0.05] is inside task.scene.table",
+        TABLE_WALL,
+        "task.start=[0.48, -0.1, 0.05]",
+    ),
+    # misleading messages
+    case(
+        "task-2d-on-3d-sim",
+        "task.dim: task=smoke is a 2-D task, for sim=pymunk2d; sim=pybullet3d simulates 3-D",
+        SINGLE,
+        "sim=pybullet3d",
+    ),
+    case(
+        "task-3d-on-2d-sim",
+        "task.dim: task=table_wall is a 3-D task, for sim=pybullet3d; sim=pymunk2d simulates 2-D",
+        SINGLE,
+        "task=table_wall",
+    ),
+    case("seed-negative", "seed: must be an integer >= 0, got -1", SINGLE, "seed=-1"),
 ]
 
 

@@ -58,6 +58,7 @@ from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
 from ccm.control.impedance import FixedImpedance
 from ccm.errors import (
     ConfigError,
+    check_bool,
     check_choice,
     check_int_positive,
     check_keys,
@@ -164,8 +165,8 @@ class AVIC(FixedImpedance):
         self._calib_errors: list[float] = []
         self._calib_trials = 0
         self.error_lowpass_s = check_nonneg(f"{key}.error_lowpass_s", error_lowpass_s)
-        self.adaptive = bool(adaptive)
-        self.feedforward = bool(feedforward)
+        self.adaptive = check_bool(f"{key}.adaptive", adaptive)
+        self.feedforward = check_bool(f"{key}.feedforward", feedforward)
         self.ff_direction = check_choice(f"{key}.ff_direction", ff_direction, FF_DIRECTIONS)
         self.min_speed = check_nonneg(f"{key}.min_speed", min_speed)
         self.model = make_forward_model(dict(forward_model or {}), f"{key}.forward_model")

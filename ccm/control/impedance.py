@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from ccm.control.base import Controller
-from ccm.errors import ConfigError, check_choice, check_nonneg, check_positive
+from ccm.errors import ConfigError, check_bool, check_choice, check_nonneg, check_positive
 from ccm.types import Command, Observation, TargetSample
 
 DAMPING_RULES = ("critical", "paper", "fixed")
@@ -100,7 +100,7 @@ class FixedImpedance(Controller):
         self.damping_ratio = check_positive(f"{key}.damping_ratio", damping_ratio)
         self.fixed_damping = check_nonneg(f"{key}.damping", damping)
         self.mass_kg = check_positive(f"{key}.mass_kg", mass_kg)
-        self.inertia_feedforward = bool(inertia_feedforward)
+        self.inertia_feedforward = check_bool(f"{key}.inertia_feedforward", inertia_feedforward)
         self.rot_stiffness = check_nonneg(f"{key}.rot_stiffness", rot_stiffness)
         self.rot_damping = check_nonneg(f"{key}.rot_damping", rot_damping)
         self.force_kp = check_nonneg(f"{key}.force_kp", force_kp)

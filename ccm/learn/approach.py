@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import ConfigError, check_finite, check_positive, constructor_kwargs
+from ccm.errors import ConfigError, check_bool, check_finite, check_positive, constructor_kwargs
 
 __all__ = ["ApproachVelocityModel"]
 
@@ -81,9 +81,7 @@ class ApproachVelocityModel:
             raise ConfigError(f"{key}.v_safe", f"must be in [{v_min}, {v_max}], got {v_safe}")
         self.max_step = check_positive(f"{key}.max_step", max_step)
         self.min_velocity_spread = check_positive(f"{key}.min_velocity_spread", min_velocity_spread)
-        if not isinstance(use_model, bool):
-            raise ConfigError(f"{key}.use_model", f"must be true or false, got {use_model!r}")
-        self.use_model = use_model
+        self.use_model = check_bool(f"{key}.use_model", use_model)
         self.velocities: list[float] = []
         self.forces: list[float] = []
 

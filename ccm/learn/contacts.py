@@ -27,6 +27,7 @@ import numpy as np
 
 from ccm.errors import (
     ConfigError,
+    check_bool,
     check_choice,
     check_finite,
     check_keys,
@@ -253,9 +254,7 @@ class ContactMap:
         self.measurement_noise_std = _std(f"{key}.measurement_noise_std", measurement_noise_std, d)
         self.new_contact_std = _std(f"{key}.new_contact_std", new_contact_std, d)
         self.gate = check_positive(f"{key}.gate", gate)
-        if not isinstance(once_per_trial, bool):
-            raise ConfigError(f"{key}.once_per_trial", f"must be a bool, got {once_per_trial!r}")
-        self.once_per_trial = once_per_trial
+        self.once_per_trial = check_bool(f"{key}.once_per_trial", once_per_trial)
         k = f"{key}.approach"
         params = constructor_kwargs(ApproachVelocityModel, approach or {}, k)
         self.approach_params = ApproachVelocityModel(**params, key=k).get_params()  # validated

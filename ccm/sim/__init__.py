@@ -15,13 +15,16 @@ BACKENDS: dict[str, str] = {
 }
 
 
+def backend(name: Any) -> type[Simulator]:
+    """The simulator class of backend ``name`` (``sim.name``); its ``dim`` is 2 or 3."""
+    import importlib
+
+    module, cls_name = BACKENDS[check_choice("sim.name", name, BACKENDS)].split(":")
+    return getattr(importlib.import_module(module), cls_name)
+
+
 def make_sim(
     sim_cfg: Mapping[str, Any], scene_cfg: Mapping[str, Any], start: Sequence[float]
 ) -> Simulator:
     """Build the simulator named by ``sim_cfg['name']`` for a task's scene and start position."""
-    import importlib
-
-    name = check_choice("sim.name", sim_cfg.get("name"), BACKENDS)
-    module, cls_name = BACKENDS[name].split(":")
-    cls = getattr(importlib.import_module(module), cls_name)
-    return cls.from_config(sim_cfg, scene_cfg, start)
+    return backend(sim_cfg.get("name")).from_config(sim_cfg, scene_cfg, start)

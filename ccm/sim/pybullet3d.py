@@ -87,6 +87,7 @@ from ccm.sim.pybullet_scene import (
     contact_split,
 )
 from ccm.sim.sensor import FTSensor
+from ccm.sim.start_pose import check_start_3d
 from ccm.types import Command, Observation, StepInfo
 
 __all__ = [
@@ -122,6 +123,7 @@ class PyBullet3D(Simulator):
         self.scene = scene
         st = check_vector("task.start", start, (3, 7))
         self.start_position = st[:3].copy()
+        check_start_3d(scene, self.start_position)
         if st.shape[0] == 7:
             nq = float(np.linalg.norm(st[3:]))
             if nq < 1e-9:

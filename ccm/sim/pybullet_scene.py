@@ -17,6 +17,7 @@ from typing import Any
 
 from ccm.errors import (
     ConfigError,
+    check_bool,
     check_choice,
     check_int_positive,
     check_keys,
@@ -25,7 +26,7 @@ from ccm.errors import (
     check_range,
     check_vector,
 )
-from ccm.sim.scene import as_plain, check_bool
+from ccm.sim.scene import as_plain
 from ccm.sim.sensor import SensorConfig
 
 #: Franka's documented "ready" pose, used as IK seed and default rest posture [rad]

@@ -50,6 +50,7 @@ import pymunk
 from ccm.errors import (
     ConfigError,
     SimulationDiverged,
+    check_bool,
     check_int_positive,
     check_keys,
     check_positive,
@@ -57,8 +58,9 @@ from ccm.errors import (
 )
 from ccm.sim.base import Simulator
 from ccm.sim.hri_forces import HRIForces
-from ccm.sim.scene import SceneSpec, as_plain, check_bool
+from ccm.sim.scene import SceneSpec, as_plain
 from ccm.sim.sensor import FTSensor, SensorConfig
+from ccm.sim.start_pose import check_start_2d
 from ccm.types import Command, Observation, StepInfo
 
 #: second entry of the seed sequence of the HRI elements' generator (walls, human, vibration)
@@ -149,6 +151,7 @@ class Pymunk2D(Simulator):
         self.scene = scene
         st = check_vector("task.start", start, (2, 3))
         self.start = (float(st[0]), float(st[1]), float(st[2]) if st.shape[0] == 3 else 0.0)
+        check_start_2d(scene, self.start)
         self.max_speed = self.config.max_speed
         self.sensor = FTSensor(self.config.sensor, force_dim=2, torque_dim=1)
         self._space: pymunk.Space | None = None

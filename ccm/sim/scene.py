@@ -21,6 +21,7 @@ from typing import Any
 
 from ccm.errors import (
     ConfigError,
+    check_bool,
     check_choice,
     check_finite,
     check_keys,
@@ -59,13 +60,6 @@ def as_plain(cfg: Any, key: str) -> dict[str, Any]:
     if not isinstance(cfg, Mapping):
         raise ConfigError(key, f"must be a mapping, got {type(cfg).__name__}")
     return dict(cfg)
-
-
-def check_bool(key: str, value: Any) -> bool:
-    """Return ``value`` if it is a bool (YAML ``true``/``false``)."""
-    if not isinstance(value, bool):
-        raise ConfigError(key, f"must be true or false, got {value!r}")
-    return value
 
 
 def _vec2(key: str, value: Any) -> Vec2:
