@@ -15,6 +15,7 @@ The wall time of every sweep and of the whole pipeline goes to ``<out>/paper_tim
 from __future__ import annotations
 
 import argparse
+import json
 import subprocess
 import sys
 import time
@@ -56,6 +57,19 @@ def _run_sweep(
     state = "ok" if rc == 0 else f"FAILED (exit {rc}; see {out / name}.log)"
     print(f"[{time.perf_counter() - t0:6.0f} s] {name}: {state} in {took:.0f} s", flush=True)
     return name, rc, took
+
+
+def _record_timing(path: Path, entry: dict) -> None:
+    """Write this invocation's wall times to ``path``; the invocations before it stay, under
+    ``earlier`` (a resumed or partial ``ccm paper`` must not erase a full run's timing)."""
+    earlier: list = []
+    try:
+        old = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        old = None
+    if isinstance(old, dict):
+        earlier = [*old.pop("earlier", []), old]
+    write_json_atomic(path, {**entry, "earlier": earlier})
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -105,7 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     report_rc = report([str(args.out)])
     wall = time.perf_counter() - t0
     failed = [n for n, rc, _ in results if rc != 0]
-    write_json_atomic(
+    _record_timing(
         args.out / "paper_timing.json",
         {"wall_s": round(wall, 1), "lanes": args.lanes, "quick": args.quick,
          "launcher": args.launcher,

@@ -19,6 +19,11 @@ def test_paper_pipeline_on_one_experiment(tmp_path: Path, capsys: pytest.Capture
     assert list(timing["sweeps_s"]) == ["mpc_convexity"] and timing["failed"] == []
     assert (out / "report.html").is_file() and (out / "mpc_convexity.log").is_file()
     assert "1/1 sweeps ok" in capsys.readouterr().out
+    # again (resumed: the run is skipped): the first invocation's timing is kept, not replaced
+    assert main(["--quick", "--out", str(out), "mpc_convexity"]) == 0
+    again = json.loads((out / "paper_timing.json").read_text())
+    timing.pop("earlier")
+    assert again["earlier"] == [timing] and list(again["sweeps_s"]) == ["mpc_convexity"]
 
 
 def test_paper_rejects_unknown_experiments_and_lanes(capsys: pytest.CaptureFixture) -> None:
