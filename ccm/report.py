@@ -34,6 +34,7 @@ from ccm.claims import Verdict, evaluate, load_claims
 from ccm.config_check import check_output_dir
 from ccm.errors import ConfigError
 from ccm.records import write_atomic
+from ccm.report_screen import SetAside, screen, tally
 
 DEFAULT_CLAIMS = Path(__file__).resolve().parents[1] / "experiments" / "claims.yaml"
 
@@ -157,29 +158,41 @@ def _unfinished(cfg: Path) -> dict[str, Any]:
 
 
 def metrics_table(runs: Sequence[tuple[Path, dict[str, Any]]]) -> Any:
-    """pandas DataFrame: experiment, condition, metric, mean, ci95, n (ok runs only)."""
+    """pandas DataFrame: experiment, condition, metric, mean, ci95, n, missing (ok runs
+    only; ``missing``: runs whose value is None or not finite, which the mean leaves out)."""
     import pandas as pd
 
     rows = [
         {"experiment": s.get("experiment"), "seed": s.get("seed"), "condition": cond,
-         "metric": k, "value": float(v)}
+         "metric": k, "value": _number(v)}
         for _, s in runs if s.get("status") == "ok"
         for cond, ms in (s.get("conditions") or {}).items()
         for k, v in ms.items()
-        if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+        if v is None or (isinstance(v, int | float) and not isinstance(v, bool))
     ]  # fmt: skip
+    cols = ["experiment", "condition", "metric", "mean", "ci95", "n", "missing"]
     if not rows:
-        return pd.DataFrame(columns=["experiment", "condition", "metric", "mean", "ci95", "n"])
+        return pd.DataFrame(columns=cols)
     df = pd.DataFrame(rows)
     g = df.groupby(["experiment", "condition", "metric"], sort=True)["value"]
-    out = g.agg(["mean", "std", "count"]).reset_index()
+    out = g.agg(["mean", "std", "count", "size"]).reset_index()
+    out["missing"] = out.pop("size") - out["count"]
     # the claims' interval (Student t over seeds); one seed: NaN, shown as "–"
     out["ci95"] = out["count"].map(t95) * out["std"] / out["count"].clip(lower=1) ** 0.5
     return out.rename(columns={"count": "n"}).drop(columns="std")
 
 
+def _number(v: float | None) -> float:
+    """A metric value as a float; None and non-finite values as NaN (counted as missing)."""
+    return float(v) if v is not None and math.isfinite(v) else math.nan
+
+
 def _discussed(doc: str) -> str:
     return f"<br>discussed in <code>{html.escape(doc)}</code>" if doc else ""
+
+
+def _mean(x: float) -> str:
+    return "– (no value)" if math.isnan(x) else f"{x:.4g}"
 
 
 def _ci(x: float) -> str:
@@ -200,16 +213,30 @@ def _verdicts(runs: Sequence[tuple[Path, dict]], claims_path: Path) -> list[Verd
     return [evaluate(c, summaries) for c in load_claims(claims_path)]
 
 
-def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
-    """(markdown, html) of the report for the runs under ``root``."""
-    runs = collect(root)
+def usable_runs(root: Path) -> tuple[list[tuple[Path, dict[str, Any]]], list[SetAside]]:
+    """The runs under ``root`` the report pools, and those it sets aside
+    (:mod:`ccm.report_screen`: duplicates, truncated runs beside full ones)."""
+    return screen(collect(root), truncated)
+
+
+def render(
+    root: Path,
+    claims_path: Path = DEFAULT_CLAIMS,
+    screened: tuple[list[tuple[Path, dict[str, Any]]], list[SetAside]] | None = None,
+) -> tuple[str, str]:
+    """(markdown, html) of the report for the runs under ``root`` (``screened``: the result
+    of :func:`usable_runs`, when the caller already has it)."""
+    runs, aside = screened if screened is not None else usable_runs(root)
     verdicts = _verdicts(runs, claims_path)
     table = metrics_table(runs)
-    failures = [(d, s.get("error", "?")) for d, s in runs if s.get("status") != "ok"]
+    failures = [(d, f"{s.get('status', '?')}: {s.get('error', '?')}")
+                for d, s in runs if s.get("status") != "ok"]  # fmt: skip
+    failures += [(a.run, f"set aside ({a.kind}): {a.reason}") for a in aside]
     counts: dict[str, int] = {}
     for v in verdicts:
         counts[v.verdict] = counts.get(v.verdict, 0) + 1
-    tally = f"{len(verdicts)} in {claims_path.name}: " + ", ".join(
+    found = tally(runs, aside)
+    tally_claims = f"{len(verdicts)} in {claims_path.name}: " + ", ".join(
         f"{n} {k}" for k, n in sorted(counts.items())
     )
     cut = sum(truncated(d) for d, _ in runs)
@@ -223,7 +250,7 @@ def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
 
     md = [
         f"# ccm report: {root}", "", *([banner, ""] if banner else []),
-        f"{len(runs)} runs; claims: {tally}.", "",
+        f"{found}; claims: {tally_claims}.", "",
         "| claim | source | paper | ours (mean ± 95 % CI) | verdict |", "|---|---|---|---|---|",
     ]  # fmt: skip
     hb = [
@@ -244,8 +271,8 @@ def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
             if banner
             else ""
         )
-        + f"<p>{html.escape(str(root))}: {len(runs)} runs; claims: "
-        f"{html.escape(tally)}.</p><h2>Claims</h2><table class='claims'><tr>"
+        + f"<p>{html.escape(str(root))}: {html.escape(found)}; claims: "
+        f"{html.escape(tally_claims)}.</p><h2>Claims</h2><table class='claims'><tr>"
         "<th class='claim'>claim</th><th class='src'>source</th><th class='paper'>paper</th>"
         "<th class='ours'>ours (mean ± 95 % CI)</th><th class='verdict'>verdict</th>"
         "<th>figures</th></tr>",
@@ -273,8 +300,8 @@ def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
             f"<td class='{v.verdict.replace(' ', '-')}'><b>{html.escape(v.verdict)}</b></td>"
             f"<td>{imgs}</td></tr>"
         )
-    hb.append("</table><h2>Run failures</h2>")
-    md += ["", "## Run failures", ""]
+    hb.append("</table><h2>Runs not pooled: failed, interrupted, set aside</h2>")
+    md += ["", "## Runs not pooled: failed, interrupted, set aside", ""]
     if failures:
         md += [f"* `{d}`: {e}" for d, e in failures]
         hb.append("<ul>" + "".join(
@@ -289,16 +316,19 @@ def render(root: Path, claims_path: Path = DEFAULT_CLAIMS) -> tuple[str, str]:
         md += [
             f"### {exp}",
             "",
-            "| condition | metric | mean | ± CI | n |",
-            "|---|---|---|---|---|",
+            "| condition | metric | mean | ± CI | n | missing |",
+            "|---|---|---|---|---|---|",
         ]
-        md += [f"| {r.condition} | {r.metric} | {r.mean:.4g} | {_ci(r.ci95)} | {r.n} |"
-               for r in sub.itertuples()]  # fmt: skip
+        md += [f"| {r.condition} | {r.metric} | {_mean(r.mean)} | {_ci(r.ci95)} | {r.n} | "
+               f"{r.missing} |" for r in sub.itertuples()]  # fmt: skip
         md.append("")
-        head = "".join(f"<th>{h}</th>" for h in ("condition", "metric", "mean", "± CI", "n"))
+        head = "".join(
+            f"<th>{h}</th>" for h in ("condition", "metric", "mean", "± CI", "n", "missing")
+        )
         hb.append(f"<details><summary>{html.escape(str(exp))}</summary><table><tr>{head}</tr>")
         hb += [f"<tr><td>{html.escape(str(r.condition))}</td><td>{html.escape(str(r.metric))}"
-               f"</td><td>{r.mean:.4g}</td><td>{_ci(r.ci95)}</td><td>{r.n}</td></tr>"
+               f"</td><td>{_mean(r.mean)}</td><td>{_ci(r.ci95)}</td><td>{r.n}</td>"
+               f"<td>{r.missing}</td></tr>"
                for r in sub.itertuples()]  # fmt: skip
         hb.append("</table></details>")
     hb.append("</body></html>")
@@ -320,11 +350,17 @@ def main(argv: Sequence[str]) -> int:
     root = Path(args[0])
     if root.is_dir():  # before the work: a report it cannot write is one line, not a traceback
         check_output_dir("report.dir", root)
-    md, page = render(root, claims)
+    screened = usable_runs(root)
+    md, page = render(root, claims, screened)
     try:
         write_atomic(root / "report.md", md)
         write_atomic(root / "report.html", page)
     except OSError as exc:
         raise ConfigError("report.dir", f"cannot write the report: {exc}") from None
     print(f"ccm: report -> {root / 'report.html'} and report.md")
+    runs, aside = screened
+    if not any(s.get("status") == "ok" for _, s in runs):
+        print(f"ccm: error: report.dir: no usable run under {root} ({tally(runs, aside)}); "
+              "the report lists why", file=sys.stderr)  # fmt: skip
+        return 1
     return 0

@@ -95,18 +95,85 @@ def test_a_claim_needs_every_run_of_its_experiment(sweep: Path) -> None:
 
 
 def test_a_report_of_truncated_runs_says_it_is_no_result(sweep: Path) -> None:
-    """Runs cut short (experiment.fast, as make reproduce-paper-quick) put a banner on top."""
+    """Runs cut short (experiment.fast, as make reproduce-paper-quick) put a banner on top
+    when they are all there is; beside full runs they are set aside, not pooled (issue #19)."""
     claims = str(sweep.parent / "claims.yaml")
     assert main([str(sweep), "--claims", claims]) == 0
     assert "Not results" not in (sweep / "report.md").read_text(encoding="utf-8")
-    hydra = sweep / "0" / ".hydra"
-    hydra.mkdir()
-    (hydra / "config.yaml").write_text("experiment:\n  name: e\n  fast: true\n", "utf-8")
+    for run in ("0", "1", "2", "3"):
+        hydra = sweep / run / ".hydra"
+        hydra.mkdir()
+        (hydra / "config.yaml").write_text("experiment:\n  name: e\n  fast: true\n", "utf-8")
     assert main([str(sweep), "--claims", claims]) == 0
     md = (sweep / "report.md").read_text(encoding="utf-8")
     page = (sweep / "report.html").read_text(encoding="utf-8")
-    assert md.splitlines()[2].startswith("**Not results: 1 of 4 runs were truncated**")
-    assert "class='banner'>Not results: 1 of 4 runs were truncated" in page
+    assert md.splitlines()[2].startswith("**Not results: 4 of 4 runs were truncated**")
+    assert "class='banner'>Not results: 4 of 4 runs were truncated" in page
+
+
+def test_truncated_runs_beside_full_ones_are_set_aside(sweep: Path) -> None:
+    hydra = sweep / "0" / ".hydra"
+    hydra.mkdir()
+    (hydra / "config.yaml").write_text("experiment:\n  name: e\n  fast: true\n", "utf-8")
+    assert main([str(sweep), "--claims", str(sweep.parent / "claims.yaml")]) == 0
+    md = (sweep / "report.md").read_text(encoding="utf-8")
+    assert "Not results" not in md
+    assert md.splitlines()[2].startswith("4 runs, 2 usable (1 failed, 1 set aside (mixed-mode))")
+    assert "set aside (mixed-mode): a truncated run beside full runs" in md
+    assert "x.m = 1.05, y.m = 2.05" in md  # seeds 1 and 2 only
+
+
+def test_the_same_seed_twice_counts_once(sweep: Path) -> None:
+    """A copy of seed 1's run (another sweep directory) is a duplicate, not a fourth seed."""
+    import shutil
+
+    shutil.copytree(sweep / "1", sweep / "zz_rerun_1")
+    assert main([str(sweep), "--claims", str(sweep.parent / "claims.yaml")]) == 0
+    md = (sweep / "report.md").read_text(encoding="utf-8")
+    assert "set aside (duplicate): the same experiment, seed and task as" in md
+    assert "x.m = 1.033, y.m = 2.033" in md  # the three seeds, as without the copy
+    assert "(n = 3)" in md
+
+
+def test_records_moved_aside_by_force_are_not_pooled(sweep: Path) -> None:
+    import shutil
+
+    shutil.copytree(sweep / "3", sweep / "0.replaced-20261203-080000")
+    (sweep / "0.replaced-20261203-080000" / "summary.json").write_text(json.dumps(
+        {"experiment": "e", "status": "ok", "seed": 7, "trials": [],
+         "conditions": {"x": {"m": 9.0}, "y": {"m": 0.0}}}), encoding="utf-8")  # fmt: skip
+    assert main([str(sweep), "--claims", str(sweep.parent / "claims.yaml")]) == 0
+    md = (sweep / "report.md").read_text(encoding="utf-8")
+    assert "set aside (replaced): a record moved aside by ccm run --force" in md
+    assert "x.m = 1.033, y.m = 2.033" in md
+
+
+def test_missing_metric_values_are_counted_not_hidden(sweep: Path) -> None:
+    from ccm.report import collect
+
+    (sweep / "2" / "summary.json").write_text(json.dumps(
+        {"experiment": "e", "status": "ok", "seed": 2, "trials": [],
+         "conditions": {"x": {"m": None}, "y": {"m": 2.0}}}), encoding="utf-8")  # fmt: skip
+    t = metrics_table(collect(sweep))
+    row = t[(t.condition == "x") & (t.metric == "m")].iloc[0]
+    assert row["n"] == 2 and row["missing"] == 1
+    assert main([str(sweep), "--claims", str(sweep.parent / "claims.yaml")]) == 0
+    assert "| x | m | 1.1 | " in (sweep / "report.md").read_text(encoding="utf-8")
+
+
+def test_a_report_with_no_usable_run_exits_non_zero(
+    sweep: Path, capsys: pytest.CaptureFixture
+) -> None:
+    for seed in ("0", "1", "2"):
+        (sweep / seed / "summary.json").write_text(json.dumps(
+            {"experiment": "e", "status": "interrupted", "seed": int(seed),
+             "error": "interrupted by SIGINT"}), encoding="utf-8")  # fmt: skip
+    assert main([str(sweep), "--claims", str(sweep.parent / "claims.yaml")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"ccm: error: report.dir: no usable run under {sweep} (4 runs, 0 usable "
+                   "(1 failed, 3 interrupted)); the report lists why"]  # fmt: skip
+    md = (sweep / "report.md").read_text(encoding="utf-8")
+    assert "interrupted: interrupted by SIGINT" in md
 
 
 def test_metrics_table_means_over_seeds(sweep: Path) -> None:
