@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import ccm
-from ccm import jobdir
+from ccm import jobdir, user_configs
 
 jobdir.register()  # hydra.sweep.subdir names jobs through it, here and in launcher workers
 
@@ -33,7 +33,8 @@ commands:
   run [OVERRIDES]       run an experiment (Hydra overrides, e.g. experiment=smoke seed=3)
   run -m [OVERRIDES]    multirun sweep, e.g. ccm run -m experiment=smoke seed=0,1,2
   run --force …         start over where a record is (it moves to <dir>.replaced-<time>)
-  list                  the experiments, tasks, controllers and sims the config groups offer
+  run -cd DIR …         also use the configs in DIR (--config-dir; or hydra.searchpath=[…])
+  list [-cd DIR]        the experiments, tasks, controllers and sims the config groups offer
   report DIR            report.md + report.html for the runs under DIR (a run or a sweep):
                         the papers' claims with verdicts (experiments/claims.yaml), metrics
                         over seeds, failures; --claims FILE for another claims file
@@ -58,19 +59,20 @@ def config_dir() -> Path:
     raise FileNotFoundError(f"ccm configs not found next to {pkg}")
 
 
-def group_options(group: str) -> list[str]:
-    """Option names of a config group (its YAML files)."""
-    return sorted(p.stem for p in (config_dir() / group).glob("*.yaml"))
+def group_options(group: str, dirs: Sequence[Path] = ()) -> list[str]:
+    """Option names of a config group (its YAML files), in the user's config directories
+    ``dirs`` (:mod:`ccm.user_configs`) and the package's."""
+    return user_configs.options(group, dirs, config_dir())
 
 
-def describe(group: str, option: str) -> str:
+def describe(group: str, option: str, dirs: Sequence[Path] = ()) -> str:
     """The ``description`` field of a group option, or its first comment line; a file whose
     top level is not a mapping raises ConfigError naming it."""
     from omegaconf import DictConfig, OmegaConf
 
     from ccm.errors import ConfigError
 
-    path = config_dir() / group / f"{option}.yaml"
+    path = user_configs.option_file(group, option, dirs, config_dir())
     node = OmegaConf.load(path)
     if not isinstance(node, DictConfig):
         raise ConfigError(str(path), "the top level is a list; a config is a mapping of keys")
@@ -84,17 +86,25 @@ def describe(group: str, option: str) -> str:
     return str(desc or "")
 
 
-def cmd_list() -> int:
+def cmd_list(args: Sequence[str] = ()) -> int:
+    """``ccm list [--config-dir DIR]``: every option of the main groups, with its line."""
     import yaml
 
     from ccm.errors import ConfigError
 
+    try:
+        flagged, rest = user_configs.split_dir_flags(args)
+        dirs = user_configs.check_dirs(flagged)
+    except ConfigError as exc:
+        return _fail(str(exc), EXIT_CONFIG)
+    if rest:
+        return _fail(f"list: unexpected {rest[0]!r}; usage: ccm list [--config-dir DIR]", 2)
     broken = 0
     for group in ("experiment", "task", "controller", "sim"):
         print(f"{group}:")
-        for opt in group_options(group):
+        for opt in group_options(group, dirs):
             try:
-                text = describe(group, opt)
+                text = describe(group, opt, dirs)
             except (yaml.YAMLError, ConfigError) as exc:  # named, the rest still listed
                 broken += 1
                 line = str(exc) if isinstance(exc, ConfigError) else _yaml_line(exc)
@@ -146,17 +156,19 @@ def _combos(overrides: Sequence[str], multirun: bool) -> list[list[str]]:
     return combos
 
 
-def _check_groups(overrides: Sequence[str]) -> str | None:
+def _check_groups(overrides: Sequence[str], dirs: Sequence[Path] = ()) -> str | None:
     for ov in overrides:
         key, _, value = ov.lstrip("+~").partition("=")
-        if key in GROUPS and value not in group_options(key):
-            return f"{key}={value}: unknown option; allowed: {', '.join(group_options(key))}"
+        if key in GROUPS and value not in group_options(key, dirs):
+            allowed = ", ".join(group_options(key, dirs))
+            return f"{key}={value}: unknown option; allowed: {allowed}"
     return None
 
 
-def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
+def precheck(overrides: Sequence[str], multirun: bool, dirs: Sequence[Path] = ()) -> str | None:
     """Compose each override combination and build its components, then check Hydra's own
-    settings (output directory, launcher); return an error line."""
+    settings (output directory, launcher); return an error line. ``dirs``: the user's config
+    directories (:mod:`ccm.user_configs`), searched before the package's."""
     from hydra import initialize_config_dir
     from hydra.errors import HydraException
 
@@ -167,16 +179,18 @@ def precheck(overrides: Sequence[str], multirun: bool) -> str | None:
     planned: set[tuple[str, ...]] = set()
     with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="ccm"):
         for combo in combos:
-            bad = _check_groups(combo)
+            bad = _check_groups(combo, dirs)
             if bad:
                 return bad
-            err = _guarded(lambda c=combo: _check_combo(c, planned))
+            err = _guarded(lambda c=combo: _check_combo(c, planned, dirs))
             if err:
                 return err
-        return _guarded(lambda: _check_hydra(overrides, combos[0], multirun))
+        return _guarded(lambda: _check_hydra(overrides, combos[0], multirun, dirs))
 
 
-def _check_combo(combo: list[str], planned: set[tuple[str, ...]]) -> None:
+def _check_combo(
+    combo: list[str], planned: set[tuple[str, ...]], dirs: Sequence[Path] = ()
+) -> None:
     """Compose one override combination and build its plan (once per set of overrides
     other than the seed, which changes no component); raise on bad input."""
     from hydra import compose
@@ -185,19 +199,21 @@ def _check_combo(combo: list[str], planned: set[tuple[str, ...]]) -> None:
     from ccm.metrics import check_extra_metrics
     from ccm.runner import check_experiment, plan_experiment
 
-    cfg = compose("config", overrides=combo)
+    cfg = compose("config", overrides=[*combo, *user_configs.searchpath_override(dirs)])
     settings = check_experiment(cfg)
     check_extra_metrics(cfg)
     unseeded = tuple(o for o in combo if o.partition("=")[0].lstrip("+~") != "seed")
     if unseeded in planned:
         return
     planned.add(unseeded)
-    plan = plan_experiment(cfg, lambda x: _compose_extra(combo, x), settings["trials"])
+    plan = plan_experiment(cfg, lambda x: _compose_extra(combo, x, dirs), settings["trials"])
     if cfg.experiment.get("kind", "trials") == "trials":
         check_trial_steps(plan, settings)
 
 
-def _check_hydra(overrides: Sequence[str], base: list[str], multirun: bool) -> None:
+def _check_hydra(
+    overrides: Sequence[str], base: list[str], multirun: bool, dirs: Sequence[Path] = ()
+) -> None:
     """Compose the base combination with its ``hydra`` overrides (sweeps left out) and check
     the run or sweep directory, the job name and the launcher."""
     from hydra import compose
@@ -209,8 +225,10 @@ def _check_hydra(overrides: Sequence[str], base: list[str], multirun: bool) -> N
     own = [
         ov.input_line for ov in parsed
         if ov.key_or_group.startswith("hydra") and not ov.is_sweep_override()
+        and ov.key_or_group != user_configs.SEARCHPATH  # dirs carries it
     ]  # fmt: skip
-    cfg = compose("config", overrides=[*base, *own], return_hydra_config=True)
+    search = user_configs.searchpath_override(dirs)
+    cfg = compose("config", overrides=[*base, *own, *search], return_hydra_config=True)
     check_hydra(cfg.hydra, multirun)
 
 
@@ -248,16 +266,22 @@ def _yaml_line(exc: BaseException) -> str:
     return f"{where}: YAML syntax error: {problem}" + (f" ({context})" if context else "")
 
 
-def _compose_extra(base: Sequence[str], extra: Sequence[str]):  # noqa: ANN202
+def _compose_extra(  # noqa: ANN202
+    base: Sequence[str], extra: Sequence[str], dirs: Sequence[Path] | None = None
+):
+    """Compose ``base`` plus a condition's ``extra`` overrides (``dirs``: the user's config
+    directories; None inside a Hydra job, where Hydra's own sources say)."""
     from hydra import compose
 
-    bad = _check_groups(extra)
+    if dirs is None:
+        dirs = user_configs.job_dirs(config_dir())
+    bad = _check_groups(extra, dirs)
     if bad:
         from ccm.errors import ConfigError
 
         key, _, _ = bad.partition(":")
         raise ConfigError(f"experiment.conditions ({key})", bad.split(": ", 1)[1])
-    return compose("config", overrides=[*base, *extra])
+    return compose("config", overrides=[*base, *extra, *user_configs.searchpath_override(dirs)])
 
 
 def _one_line(exc: BaseException) -> str:
@@ -397,12 +421,21 @@ def _run_app(args: list[str]) -> int:
     """Precheck the overrides (exit 2 on a bad one), then run the Hydra app."""
     import hydra
 
+    from ccm.errors import ConfigError
+
     multirun = "-m" in args or "--multirun" in args
     flags = {"-m", "--multirun"}
     info_flags = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve"}
-    overrides = [a for a in args if not a.startswith("-") and a not in flags]
+    try:
+        flagged, rest = user_configs.split_dir_flags(args)
+        overrides = [a for a in rest if not a.startswith("-") and a not in flags]
+        dirs = [*user_configs.check_dirs(flagged),
+                *user_configs.check_dirs(user_configs.searchpath_dirs(overrides),
+                                         user_configs.SEARCHPATH)]  # fmt: skip
+    except ConfigError as exc:
+        return _fail(str(exc), EXIT_CONFIG)
     if not (set(args) & info_flags):
-        err = precheck(overrides, multirun)
+        err = precheck(overrides, multirun, dirs)
         if err:
             return _fail(err, EXIT_CONFIG)
 
@@ -429,7 +462,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"ccm {ccm.__version__}")
         return 0
     if argv[0] == "list":
-        return cmd_list()
+        return cmd_list(argv[1:])
     if argv[0] == "run":
         return cmd_run(argv[1:])
     if argv[0] in ("report", "paper"):
