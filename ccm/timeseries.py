@@ -58,7 +58,7 @@ def write_timeseries(path: Path, table: Mapping[str, np.ndarray]) -> None:
         name: np.asarray(v, dtype=np.float64 if name in FLOAT64_COLUMNS else np.float32)
         for name, v in table.items()
     }
-    with atomic_path(path) as tmp:
+    with atomic_path(Path(path)) as tmp:
         pq.write_table(
             pa.table(columns), tmp, compression="zstd", compression_level=9,
             use_dictionary=False, use_byte_stream_split=True,
