@@ -2,3 +2,7 @@
 (Haninger et al.) in simulation, with their baselines, tasks and an experiment runner."""
 
 __version__ = "0.1.0"
+
+from ccm.load import Run, load_run  # noqa: E402  (after the version: a light, files-only import)
+
+__all__ = ["Run", "load_run", "__version__"]

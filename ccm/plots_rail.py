@@ -3,8 +3,9 @@
 ``mpc_rail_damping.png``: one column per condition, rows D_x and D_y [N s/m] against the
 distance between the tool's contact point and the rail [m] (:func:`ccm.mpc_metrics.rail_distance`;
 ≤ 0 in contact), for every trial after the demonstrations (the autonomous trial dashed). The
-trials are read back from the run's ``timeseries`` CSVs, since the runner keeps only two logs
-per condition in memory. Written only when ``metrics.rail_point`` is set.
+trials are read back from the run's ``timeseries`` Parquet files, since the runner keeps only two
+logs per condition in memory (so the rail experiment sets ``experiment.timeseries: all``; a trial
+without a file is left out). Written only when ``metrics.rail_point`` is set.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from ccm.mpc_metrics import rail_distance
-from ccm.records import AXES, read_csv
+from ccm.records import AXES
+from ccm.timeseries import read_timeseries, trial_path
 
 
 def write_rail_figure(
@@ -36,10 +38,10 @@ def write_rail_figure(
     fig, axs = plt.subplots(dim, len(conds), figsize=(4.2 * len(conds), 2.8 * dim), squeeze=False)
     for j, cond in enumerate(conds):
         for t in (t for t in shown if t["condition"] == cond):
-            path = run_dir / "timeseries" / cond / f"trial_{int(t['trial']):03d}.csv"
+            path = trial_path(run_dir, cond, int(t["trial"]))
             if not path.exists():
                 continue
-            log = read_csv(path)
+            log = read_timeseries(path)
             if f"damping_{AXES[0]}_Nspm" not in log:
                 continue
             d = rail_distance(log, dim, params)

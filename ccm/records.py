@@ -1,4 +1,5 @@
-"""Trial time series and atomic file writes for the run directory (layout: README)."""
+"""Trial time series (in memory) and atomic file writes for the run directory (layout: README;
+on disk: :mod:`ccm.timeseries`)."""
 
 from __future__ import annotations
 
@@ -145,21 +146,3 @@ class TrialRecorder:
     def columns(self) -> list[str]:
         """Column names in file order."""
         return list(self.arrays())
-
-    def write_csv(self, path: Path) -> None:
-        """Write the log as CSV with a header row (atomic)."""
-        import io
-
-        table = self.arrays()
-        data = np.column_stack(list(table.values())) if len(self) else np.empty((0, len(table)))
-        buf = io.StringIO()
-        np.savetxt(buf, data, delimiter=",", header=",".join(table), comments="", fmt="%.9g")
-        write_atomic(path, buf.getvalue())
-
-
-def read_csv(path: Path) -> dict[str, np.ndarray]:
-    """Read a time series written by :meth:`TrialRecorder.write_csv`."""
-    with open(path, encoding="utf-8") as fh:
-        header = fh.readline().strip().split(",")
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    return {name: data[:, i] for i, name in enumerate(header)}

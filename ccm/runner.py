@@ -50,6 +50,7 @@ from ccm.records import TrialRecorder, write_atomic, write_json_atomic
 from ccm.sim import BACKENDS, backend, make_sim
 from ccm.sim.base import Simulator, check_state_finite
 from ccm.tasks.task import Task, load_task
+from ccm.timeseries import check_mode, keep_trial, trial_path, write_timeseries
 from ccm.types import Observation, StepInfo
 
 #: compose(extra_overrides) -> config; provided by the CLI (Hydra compose API)
@@ -261,6 +262,7 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
         "figures": check_bool("experiment.figures", exp.get("figures", True)),
         "fast": fast,
         "max_retime_s": check_nonneg("experiment.max_retime_s", exp.get("max_retime_s", 60.0)),
+        "timeseries": check_mode(exp.get("timeseries", "first_last")),
     }
 
 
@@ -421,7 +423,8 @@ def run_experiment(
                         later = n_trials(ph) - i - 1
                         bar.expect(bar.n + planned_left + later * (len(rec) - planned))
                     sim_time += len(rec) * comp.sim.control_dt
-                    rec.write_csv(out_dir / "timeseries" / cond.name / f"trial_{trial:03d}.csv")
+                    if keep_trial(settings["timeseries"], i, n_trials(ph)):  # experiment.timeseries
+                        write_timeseries(trial_path(out_dir, cond.name, trial), rec.arrays())
                     arrays = rec.arrays()
                     metrics = trial_metrics(
                         arrays,

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from ccm.metrics import BASE_METRICS
+from ccm.timeseries import read_timeseries, trial_path
 
 CCM = str(Path(sys.executable).parent / "ccm")
 
@@ -40,8 +41,7 @@ def test_smoke_run_writes_a_complete_run_directory(tmp_path: Path) -> None:
     assert len(summary["trials"]) == 4  # 2 conditions x 2 trials
     for cond in ("fixed_low", "fixed_high"):
         for trial in (1, 2):
-            csv = run / "timeseries" / cond / f"trial_{trial:03d}.csv"
-            header = csv.read_text().splitlines()[0].split(",")
+            header = read_timeseries(trial_path(run, cond, trial))
             for col in (
                 "t",
                 "target_pos_x",

@@ -65,10 +65,11 @@ def test_two_concurrent_runs_into_one_directory(tmp_path: Path) -> None:
     """The issue's case: a run, and 0.5 s later another config into the same directory, each
     of several seconds. One runs, the other is refused in one line and writes nothing."""
     run = tmp_path / "x"
+    common = ["experiment.figures=false", "experiment.timeseries=all", f"hydra.run.dir={run}"]
     first = ["run", "experiment=single", "experiment.trials=150", "controller.stiffness=300",
-             "experiment.figures=false", f"hydra.run.dir={run}"]  # fmt: skip
+             *common]  # fmt: skip
     second = ["run", "experiment=single", "experiment.trials=100", "controller.stiffness=3000",
-              "experiment.figures=false", f"hydra.run.dir={run}"]  # fmt: skip
+              *common]  # fmt: skip
     a = _start(first, tmp_path)
     time.sleep(0.5)
     b = _start(second, tmp_path)
@@ -88,7 +89,7 @@ def test_two_concurrent_runs_into_one_directory(tmp_path: Path) -> None:
     # the record is the winner's alone: config, summary, every trial's time series
     summary = json.loads((run / "summary.json").read_text())
     assert summary["status"] == "ok" and len(summary["trials"]) == trials
-    assert len(list((run / "timeseries").rglob("*.csv"))) == trials
+    assert len(list((run / "timeseries").rglob("*.parquet"))) == trials
     config = yaml.safe_load((run / ".hydra" / "config.yaml").read_text())
     assert config["controller"]["stiffness"] == stiffness
     assert config["experiment"]["trials"] == trials
@@ -230,7 +231,10 @@ def test_a_record_from_before_the_hash_is_checked_by_its_config(tmp_path: Path, 
 
 def test_stale_temporary_files_are_removed(tmp_path: Path) -> None:
     (tmp_path / "timeseries" / "a").mkdir(parents=True)
-    stale = [tmp_path / ".summary.json.k2j4_x.tmp", tmp_path / "timeseries/a/.trial_001.csv.q.tmp"]
+    stale = [
+        tmp_path / ".summary.json.k2j4_x.tmp",
+        tmp_path / "timeseries/a/.trial_001.parquet.q.tmp",
+    ]
     for p in stale:
         p.write_text("half")
     (tmp_path / "notes.tmp").write_text("not ours")  # not an atomic write's name
@@ -242,7 +246,7 @@ def test_stale_temporary_files_are_removed(tmp_path: Path) -> None:
 
 
 def _trial_files(run: Path) -> list[Path]:
-    return list((run / "timeseries").rglob("trial_*.csv")) if run.is_dir() else []
+    return list((run / "timeseries").rglob("trial_*.parquet")) if run.is_dir() else []
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
@@ -251,7 +255,8 @@ def test_a_signal_ends_a_run_with_one_line_and_an_interrupted_record(
 ) -> None:
     run = tmp_path / "run"
     proc = _start(["run", "experiment=smoke", "experiment.trials=500",
-                   "experiment.figures=false", f"hydra.run.dir={run}"], tmp_path)  # fmt: skip
+                   "experiment.figures=false", "experiment.timeseries=all",
+                   f"hydra.run.dir={run}"], tmp_path)  # fmt: skip
     _wait_for(lambda: len(_trial_files(run)) >= 2 or proc.poll() is not None)
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=120)
@@ -292,7 +297,7 @@ def test_a_signal_to_a_local_sweep_stops_its_workers(tmp_path: Path, sig: signal
     workers record their jobs as interrupted and exit with it; one line, exit 128 + signal."""
     sweep = tmp_path / "sweep"
     proc = _start(["run", "-m", "experiment=smoke", "seed=0,1,2,3", "experiment.trials=500",
-                   "experiment.figures=false", "hydra/launcher=local",
+                   "experiment.figures=false", "experiment.timeseries=all", "hydra/launcher=local",
                    f"hydra.sweep.dir={sweep}"], tmp_path)  # fmt: skip
     # two jobs under way, each with a trial done (its record follows its time series file)
     _wait_for(lambda: sum(len(_trial_files(j)) >= 2 for j in sweep.glob("*")) >= 2)

@@ -31,6 +31,7 @@ def test_phases_share_the_controller_and_number_trials(composer, tmp_path: Path)
         "task=smoke",
         "controller=bac",
         "experiment.figures=false",
+        "experiment.timeseries=all",
         PHASES,
     ]
     cfg = composer(overrides)
@@ -56,7 +57,7 @@ def test_phases_share_the_controller_and_number_trials(composer, tmp_path: Path)
     assert trials[-1]["mean_stiffness_Npm"] != trials[0]["mean_stiffness_Npm"]
     on_disk = json.loads((tmp_path / "summary.json").read_text())
     assert on_disk == summary
-    assert len(list((tmp_path / "timeseries" / name).glob("trial_*.csv"))) == 3
+    assert len(list((tmp_path / "timeseries" / name).glob("trial_*.parquet"))) == 3
 
 
 def test_a_condition_may_set_its_own_trial_count(composer, tmp_path: Path) -> None:

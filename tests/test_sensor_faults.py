@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from ccm.errors import ConfigError
-from ccm.records import read_csv
 from ccm.runner import run_experiment
 from ccm.sim.sensor import FTSensor, SensorConfig
+from ccm.timeseries import read_timeseries
 
 FAULTS = [
     "sim.sensor.force_noise_std=0.5",  # x10 the 0.05 N the H1/H2 experiments use
@@ -34,8 +34,8 @@ def test_avic_survives_sensor_faults(composer, tmp_path: Path) -> None:
     # no error exists for the first H steps of a trial (H = the model's horizon), nor for
     # the first 2 H of trial 1: the empty model learns its first pair at step H
     h = round(cfg.controller.forward_model.horizon_s / 0.001)
-    for trial in ("trial_001.csv", "trial_002.csv"):
-        log = read_csv(next((tmp_path / "timeseries").rglob(trial)))
+    for trial in ("trial_001.parquet", "trial_002.parquet"):
+        log = read_timeseries(next((tmp_path / "timeseries").rglob(trial)))
         for name, col in log.items():
             late = name.startswith(("pred_", "persist_"))
             assert np.all(np.isfinite(col[2 * h + 1 :] if late else col)), (trial, name)

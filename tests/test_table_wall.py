@@ -23,6 +23,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from ccm.runner import build_components, run_trial
+from ccm.timeseries import read_timeseries
 from ccm.types import Command, Observation, StepInfo
 
 pytest.importorskip("pybullet")
@@ -251,7 +252,7 @@ def test_cli_run_with_wall_friction_override(tmp_path: Path) -> None:
     assert cfg.task.name == "table_wall"
     assert math.isclose(cfg.task.scene.boxes[0].friction, 0.9)
     assert json.loads((run_dir / "summary.json").read_text())["status"] == "ok"
-    (csv,) = list((run_dir / "timeseries").rglob("trial_001.csv"))
-    header = csv.read_text().splitlines()[0].split(",")
+    (path,) = list((run_dir / "timeseries").rglob("trial_001.parquet"))
+    header = read_timeseries(path)
     for col in ("truth_table_normal_N", "truth_box_normal_N", "truth_box_friction_N"):
         assert col in header
