@@ -338,6 +338,11 @@ def render(
 def main(argv: Sequence[str]) -> int:
     """``ccm report DIR [--claims FILE]``: write DIR/report.md and DIR/report.html."""
     args = list(argv)
+    if {"-h", "--help"} & set(args):
+        print(
+            "usage: ccm report DIR [--claims FILE]: report.md + report.html for the runs under DIR"
+        )
+        return 0
     claims = DEFAULT_CLAIMS
     if "--claims" in args:
         i = args.index("--claims")

@@ -184,6 +184,11 @@ def test_metrics_table_means_over_seeds(sweep: Path) -> None:
     assert row["mean"] == pytest.approx(31 / 30) and row["n"] == 3
 
 
+def test_report_help(capsys: pytest.CaptureFixture) -> None:
+    assert main(["--help"]) == 0
+    assert capsys.readouterr().out.startswith("usage: ccm report DIR")
+
+
 def test_bad_report_input(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="no summary.json"):
         main([str(tmp_path)])
