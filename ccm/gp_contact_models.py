@@ -55,6 +55,7 @@ from ccm.errors import (
     config_block,
 )
 from ccm.records import write_atomic, write_json_atomic
+from ccm.timeseries import check_mode, keep_trial, trial_path, write_timeseries
 
 GUIDANCE = ("autonomous", "human")
 POSITIONS = ("fixed", "varying")
@@ -284,7 +285,7 @@ def run_gp_contact_models(cfg: DictConfig, compose: Callable, out_dir: Path) -> 
     conditions: dict[str, dict[str, Any]] = {}
     trials: list[dict[str, Any]] = []
     curves: dict[str, dict[str, Any]] = {}
-    series: list[str] = ["case,demo,t_s,x_m,f_x_N"]
+    mode = check_mode(cfg.experiment.get("timeseries", "first_last"))
     timing: dict[str, float] = {}
     for guidance in GUIDANCE:
         if guidance not in s["guidance"]:
@@ -303,9 +304,9 @@ def run_gp_contact_models(cfg: DictConfig, compose: Callable, out_dir: Path) -> 
                 timing[name] = time.perf_counter() - tc
                 for j, d in enumerate(demos, start=1):
                     trials.append(_trial_row(name, j, d))
-                    series += [f"{name},{j},{t:.3f},{x:.7f},{f:.5f}"
-                               for t, x, f in zip(d["t"], d["x"], d["f"], strict=True)]  # fmt: skip
-    write_atomic(out_dir / "timeseries.csv", "\n".join(series) + "\n")
+                    if keep_trial(mode, j - 1, len(demos)):  # experiment.timeseries
+                        columns = {"t": d["t"], "pos_x": d["x"], "force_x": d["f"]}
+                        write_timeseries(trial_path(out_dir, name, j), columns)
     write_atomic(out_dir / "gp_contact_models.md", markdown_table(conditions))
     if cfg.experiment.get("figures", True):
         from ccm.plots_gp_contact import write_gp_contact_figure

@@ -56,7 +56,7 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig
 
-from ccm.errors import ConfigError, check_int_positive, config_block
+from ccm.errors import ConfigError, check_bool, check_int_positive, config_block
 from ccm.h3_data import collect, load_dataset, save_dataset
 from ccm.h3_scores import Y, along_latest, gp_force_scores, joint_scores, norm_force_scores
 from ccm.learn.forward_model import N_STATE, make_forward_model
@@ -66,7 +66,7 @@ from ccm.records import write_json_atomic
 _KEYS = (
     "controllers", "train_frictions", "trials_per_friction", "single_friction", "single_trials",
     "test_friction", "test_trials", "subsample", "baseline", "forward_model", "data_from",
-    "max_time_s",
+    "save_data", "max_time_s",
 )  # fmt: skip
 Trial = Mapping[str, np.ndarray]
 
@@ -77,6 +77,7 @@ def _settings(cfg: DictConfig) -> dict[str, Any]:
         h3[k] = check_int_positive(f"h3.{k}", h3.get(k))
     if not h3.get("train_frictions"):
         raise ConfigError("h3.train_frictions", "must list at least one wall friction")
+    h3["save_data"] = check_bool("h3.save_data", h3.get("save_data", False))
     if cfg.experiment.get("fast", False):  # tests: one short trial per dataset
         fast_s = float(cfg.experiment.get("fast_time_s", 0.5))
         h3 |= {
@@ -87,7 +88,8 @@ def _settings(cfg: DictConfig) -> dict[str, Any]:
 
 
 def _datasets(h3: Mapping[str, Any], cfg: DictConfig, compose: Callable, out_dir: Path) -> dict:
-    """The five datasets of the module docstring: recorded now, or read from ``data_from``."""
+    """The five datasets of the module docstring: recorded now, or read from ``data_from``;
+    written to ``data/*.npz`` only with ``save_data`` (600 MB for five seeds)."""
     specs = {
         "medium_multi": ("medium", h3["train_frictions"], h3["trials_per_friction"]),
         "medium_single": ("medium", [h3["single_friction"]], h3["single_trials"]),
@@ -99,16 +101,17 @@ def _datasets(h3: Mapping[str, Any], cfg: DictConfig, compose: Callable, out_dir
     first = 1
     for name, (ctl, frictions, n) in specs.items():
         path = out_dir / "data" / f"{name}.npz"
+        save = save_dataset if h3["save_data"] else _discard
         if h3.get("data_from"):
-            out[name], _ = load_dataset(Path(h3["data_from"]) / "data" / f"{name}.npz")
-            save_dataset(path, out[name], {"copied_from": str(h3["data_from"])})
+            out[name] = _reuse(Path(h3["data_from"]), name)
+            save(path, out[name], {"copied_from": str(h3["data_from"])})
             continue
         controller = h3["controllers"][ctl]
         subset = _single_friction_subset(name, out, h3)
         if subset is not None:  # the same controller and friction: reuse, do not re-record
             meta = {"controller": controller, "frictions": list(frictions), "seed": int(cfg.seed),
                     "subset_of": "medium_multi"}  # fmt: skip
-            save_dataset(path, subset, meta)
+            save(path, subset, meta)
             out[name] = subset
             continue
         trials = collect(
@@ -117,9 +120,22 @@ def _datasets(h3: Mapping[str, Any], cfg: DictConfig, compose: Callable, out_dir
         )  # fmt: skip
         first += len(trials)
         meta = {"controller": controller, "frictions": list(frictions), "seed": int(cfg.seed)}
-        save_dataset(path, trials, meta)
+        save(path, trials, meta)
         out[name] = trials
     return out
+
+
+def _discard(path: Path, trials: Sequence[Trial], meta: Mapping) -> None:
+    """``h3.save_data: false``: the datasets are used, not written."""
+
+
+def _reuse(run: Path, name: str) -> list:
+    """Dataset ``name`` of the earlier run ``run`` (``h3.data_from``)."""
+    if not (run / "data").is_dir():
+        raise ConfigError(
+            "h3.data_from", f"{run} has no data/ directory: record it with h3.save_data=true"
+        )
+    return load_dataset(run / "data" / f"{name}.npz")[0]
 
 
 def _single_friction_subset(name: str, out: Mapping[str, list], h3: Mapping) -> list | None:

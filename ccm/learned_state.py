@@ -48,7 +48,7 @@ def save_states(state_dir: Path, items: Iterable[tuple[str, Controller, int]]) -
             "trials": trials,
             "state": state,
         }
-        write_json_atomic(state_dir / f"{name}.json", record)
+        write_json_atomic(state_dir / f"{name}.json", record, compact=True)
 
 
 def load_states(init_from: Any, items: Iterable[tuple[str, Controller]]) -> dict[str, int]:

@@ -3,6 +3,7 @@ on disk: :mod:`ccm.timeseries`)."""
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import tempfile
@@ -43,13 +44,22 @@ def write_atomic(path: Path, text: str) -> None:
 
 
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> None:
-    """Lay out ``fig``, write it to ``path`` as PNG atomically, and close it."""
+    """Lay out ``fig``, write it to ``path`` as PNG atomically, and close it.
+
+    An opaque figure (every pixel's alpha 255, as with matplotlib's default white face) is
+    stored as RGB rather than RGBA: the same pixels in ~12 % fewer bytes."""
     import matplotlib.pyplot as plt
+    from PIL import Image
 
     try:
         fig.tight_layout()
+        buf = io.BytesIO()
+        fig.savefig(buf, dpi=dpi, format="png")
+        image = Image.open(buf)
+        if image.mode == "RGBA" and image.getchannel("A").getextrema() == (255, 255):
+            image = image.convert("RGB")
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png")
+            image.save(tmp, format="png")
     finally:
         plt.close(fig)
 
@@ -61,9 +71,15 @@ def _umask() -> int:
     return mask
 
 
-def write_json_atomic(path: Path, data: Any) -> None:
-    """Atomically write ``data`` as pretty JSON (keys in insertion order, strict: no NaN)."""
-    write_atomic(path, json.dumps(data, indent=2, allow_nan=False) + "\n")
+def write_json_atomic(path: Path, data: Any, compact: bool = False) -> None:
+    """Atomically write ``data`` as JSON (keys in insertion order, strict: no NaN): indented,
+    or ``compact`` (no whitespace: learned states are mostly long number arrays, and
+    indentation puts each number on its own line, nearly doubling the file)."""
+    if compact:
+        text = json.dumps(data, separators=(",", ":"), allow_nan=False)
+    else:
+        text = json.dumps(data, indent=2, allow_nan=False)
+    write_atomic(path, text + "\n")
 
 
 class TrialRecorder:

@@ -19,6 +19,7 @@ from omegaconf import DictConfig
 
 from ccm.cli import config_dir
 from ccm.errors import ConfigError
+from ccm.load import load_run
 from ccm.runner import run_experiment
 
 BASE = [
@@ -61,8 +62,14 @@ def test_autonomous_fixed_contact_is_identified(fixed_and_varying) -> None:
     # 0.5 mm: better than the 0.33 mm the 15 N press sinks into the wall, plus margin
     assert abs(m["contact_position_error_m"]) < 5e-4, m["contact_position_error_m"]
     assert m["stiffness_ratio"] == pytest.approx(1.0, abs=0.3), m["stiffness_ratio"]
-    for name in ("figures/gp_contact_models.png", "gp_contact_models.md", "timeseries.csv"):
+    for name in ("figures/gp_contact_models.png", "gp_contact_models.md"):
         assert (out / name).is_file(), name
+    # experiment.timeseries = first_last: demonstrations 1 and 3 of each case, as Parquet
+    files = sorted(p.relative_to(out).as_posix() for p in out.glob("timeseries/*/*.parquet"))
+    assert files == [f"timeseries/{c}/trial_00{j}.parquet" for c in
+                     ("autonomous_fixed_45", "autonomous_varying_45") for j in (1, 3)]  # fmt: skip
+    series = load_run(out).timeseries
+    assert {"condition", "trial", "t", "pos_x", "force_x"} <= set(series.columns)
     assert [t["trial"] for t in summary["trials"]] == [1, 2, 3, 1, 2, 3]
 
 

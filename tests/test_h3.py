@@ -30,7 +30,7 @@ def run(tmp_path: Path, name: str, *extra: str) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def first(tmp_path_factory) -> Path:
     tmp = tmp_path_factory.mktemp("h3")
-    res = run(tmp, "a")
+    res = run(tmp, "a", "h3.save_data=true")
     assert res.returncode == 0, res.stderr
     return tmp
 
@@ -71,6 +71,16 @@ def test_reused_data_give_the_identical_summary(first: Path) -> None:
     assert res.returncode == 0, res.stderr
     a = (first / "a" / "summary.json").read_bytes()
     assert (first / "b" / "summary.json").read_bytes() == a
+    assert not (first / "b" / "data").exists()  # h3.save_data defaults to false
+
+
+def test_data_from_a_run_without_saved_data_is_one_line(first: Path) -> None:
+    if not (first / "b").is_dir():
+        pytest.skip("needs the run of test_reused_data_give_the_identical_summary")
+    res = run(first, "c", f"h3.data_from={first / 'b'}")
+    assert res.returncode != 0
+    line = res.stderr.strip().splitlines()[-1]
+    assert "h3.data_from" in line and "h3.save_data=true" in line and "Traceback" not in res.stderr
 
 
 def test_missing_data_from_is_one_line(tmp_path: Path) -> None:
