@@ -219,7 +219,9 @@ def _check_hydra(
     from hydra import compose
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
+    from ccm import run_record
     from ccm.config_check import check_hydra
+    from ccm.errors import ConfigError
 
     parsed = OverridesParser.create().parse_overrides(list(overrides))
     own = [
@@ -230,6 +232,13 @@ def _check_hydra(
     search = user_configs.searchpath_override(dirs)
     cfg = compose("config", overrides=[*base, *own, *search], return_hydra_config=True)
     check_hydra(cfg.hydra, multirun)
+    if multirun:  # the sweep's config: the overrides but the sweeps (as Hydra's multirun.yaml)
+        unswept = [ov.input_line for ov in parsed if not ov.is_sweep_override()]
+        sweep = compose("config", overrides=[*unswept, *search])
+        try:
+            run_record.check_sweep_record(Path(cfg.hydra.sweep.dir), sweep, run_record.forced())
+        except run_record.RecordRefused as exc:
+            raise ConfigError("hydra.sweep.dir", str(exc)) from None
 
 
 def _guarded(check: Callable[[], None]) -> str | None:

@@ -153,21 +153,25 @@ def in_worker() -> bool:
 
 
 def die_with_launcher() -> None:
-    """Linux: ask the kernel to send this sweep worker SIGTERM when its launcher (its parent)
-    dies, even by SIGKILL; the worker then records its job as interrupted and exits instead
-    of finishing it unwatched (a re-run would run it again). Elsewhere, or when the parent is
-    not the launcher (a cluster job), a no-op: the run directory's lock still keeps a re-run
-    out of a job an orphan is running."""
+    """Linux: ask the kernel to send this sweep worker SIGTERM when its launcher dies, even by
+    SIGKILL; the worker then records its job as interrupted and exits instead of finishing it
+    unwatched (a re-run would run it again). A worker whose launcher died before this call
+    (its parent is no longer the process that started it) signals itself at once. Elsewhere,
+    or when the launcher did not start this process (a cluster job), a no-op: the run
+    directory's lock still keeps a re-run out of a job an orphan is running."""
+    import multiprocessing
+
     if not sys.platform.startswith("linux"):
         return
-    if str(os.getppid()) != os.environ.get(LAUNCHER_PID_ENV):
+    parent = multiprocessing.parent_process()  # who started this process, alive or not
+    if parent is None or str(parent.pid) != os.environ.get(LAUNCHER_PID_ENV):
         return
     import ctypes
 
     with suppress(Exception):
         ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
-        if str(os.getppid()) != os.environ.get(LAUNCHER_PID_ENV):  # died before the prctl
-            os.kill(os.getpid(), signal.SIGTERM)
+    if os.getppid() != parent.pid:  # the launcher died before the prctl could watch it
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 def exit_worker(code: int) -> None:

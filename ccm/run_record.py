@@ -39,6 +39,8 @@ from ccm.records import write_atomic
 LOCK_NAME = ".lock"
 HASH_NAME = "config.sha256"
 HYDRA_DIR = ".hydra"
+#: Hydra's record of a sweep's config, in the sweep directory
+MULTIRUN_FILE = "multirun.yaml"
 #: "1" while ``ccm run --force`` runs (its jobs may run in other processes: sweep workers)
 FORCE_ENV = "CCM_FORCE"
 #: a moved-aside record is ``<run dir>.replaced-<timestamp>`` (sweeps skip such directories)
@@ -198,12 +200,7 @@ def _move_aside(lock: RunLock) -> tuple[Path, RunLock]:
     """Rename the locked run directory to ``<dir>.replaced-<timestamp>`` and lock a new, empty
     one in its place; returns the new name and the new lock (the old one is released)."""
     run_dir = lock.run_dir
-    stamp = datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
-    aside = run_dir.with_name(f"{run_dir.name}{REPLACED}{stamp}")
-    n = 1
-    while aside.exists():
-        n += 1
-        aside = run_dir.with_name(f"{run_dir.name}{REPLACED}{stamp}-{n}")
+    aside = _aside_name(run_dir)
     os.rename(run_dir, aside)
     lock.run_dir = aside  # the held lock file moved with the directory
     try:
@@ -213,6 +210,48 @@ def _move_aside(lock: RunLock) -> tuple[Path, RunLock]:
     finally:
         lock.release()
     return aside, fresh
+
+
+def _aside_name(path: Path) -> Path:
+    """``<path>.replaced-<timestamp>`` (``-2``, ``-3``, … if taken): where a record moves."""
+    stamp = datetime.now().strftime("%Y-%m-%d_%H-%M-%S")
+    aside = path.with_name(f"{path.name}{REPLACED}{stamp}")
+    n = 1
+    while aside.exists():
+        n += 1
+        aside = path.with_name(f"{path.name}{REPLACED}{stamp}-{n}")
+    return aside
+
+
+def check_sweep_record(sweep_dir: Path, cfg: DictConfig, force: bool) -> Path | None:
+    """Before a sweep starts in ``sweep_dir``: the sweep recorded there (``multirun.yaml``,
+    Hydra's record of the sweep's config, sweep values left out) must have ``cfg``'s config, so
+    an edited config file or another override cannot resume it; :class:`RecordRefused`
+    otherwise. ``force`` moves the old ``multirun.yaml`` aside (returned) instead; each job's
+    own record is checked when the job opens it (:func:`open_record`)."""
+    old = Path(sweep_dir) / MULTIRUN_FILE
+    if not old.is_file():
+        return None
+    try:
+        same = config_digest(job_config(OmegaConf.load(old))) == config_digest(job_config(cfg))
+    except Exception:  # unreadable: not a record of this config
+        same = False
+    if same:
+        return None
+    if not force:
+        raise RecordRefused(
+            f"sweep directory {sweep_dir} holds a sweep of another config ({MULTIRUN_FILE} "
+            "differs); run again with --force to move its records aside and start over, or "
+            "choose another directory"
+        )
+    aside = _aside_name(old)
+    os.rename(old, aside)
+    return aside
+
+
+def job_config(cfg: DictConfig) -> DictConfig:
+    """``cfg`` without its ``hydra`` node: the config a job's record hashes."""
+    return OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
 
 
 def clean_stale_temp(run_dir: Path) -> list[Path]:

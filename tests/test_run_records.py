@@ -187,7 +187,9 @@ def test_another_config_is_refused_and_force_moves_the_old_record_aside(
 
 def test_a_resumed_sweep_refuses_its_stale_jobs(tmp_path: Path, in_process) -> None:  # noqa: ANN001
     """A sweep resumed after its config changed (here: a key left out of the job names, as an
-    edited config file is) refuses every stale job in one line each, exit 1, records intact."""
+    edited config file is) is refused in one line before any job starts (exit 2, records and
+    multirun.yaml intact); without the sweep's multirun.yaml, each stale job refuses in one line
+    (exit 1); --force moves the old records aside and starts over."""
     sweep = tmp_path / "sweep"
     keep_names = (
         "hydra.job.config.override_dirname.exclude_keys=[hydra.sweep.dir,controller.stiffness]"
@@ -196,15 +198,33 @@ def test_a_resumed_sweep_refuses_its_stale_jobs(tmp_path: Path, in_process) -> N
             f"hydra.sweep.dir={sweep}"]  # fmt: skip
     code, _, err = in_process([*base, "controller.stiffness=400"])
     assert code == 0, err
-    before = _snapshot(sweep)
+    assert in_process([*base, "controller.stiffness=400", "seed=0,1,2"])[0] == 0  # extended
+    before = {k: v for k, v in _snapshot(sweep).items() if "seed=2" not in k}
+
+    code, _, err = in_process([*base, "controller.stiffness=500"])
+    assert code == cli.EXIT_CONFIG
+    assert _lines(err) == [
+        f"ccm: error: hydra.sweep.dir: sweep directory {sweep} holds a sweep of another config "
+        "(multirun.yaml differs); run again with --force to move its records aside and start "
+        "over, or choose another directory"
+    ]
+    assert {k: v for k, v in _snapshot(sweep).items() if "seed=2" not in k} == before
+
+    (sweep / "multirun.yaml").rename(tmp_path / "multirun.yaml")
     code, _, err = in_process([*base, "controller.stiffness=500"])
     assert code == cli.EXIT_FAILED
     lines = _lines(err)
     assert len(lines) == 2 and all("holds a run of another config" in ln for ln in lines)
     after = _snapshot(sweep)
-    assert {k: v for k, v in after.items() if k != "multirun.yaml"} == {
+    assert {k: v for k, v in after.items() if "seed=2" not in k and k != "multirun.yaml"} == {
         k: v for k, v in before.items() if k != "multirun.yaml"
     }
+
+    (tmp_path / "multirun.yaml").replace(sweep / "multirun.yaml")  # the 400 sweep's record
+    code, _, err = in_process(["run", "--force", *base[1:], "controller.stiffness=500"])
+    assert code == 0, err
+    assert len(list(sweep.glob("multirun.yaml.replaced-*"))) == 1
+    assert len(list(sweep.glob("*,seed=[01].replaced-*"))) == 2
 
 
 def test_config_digest_is_deterministic(composer) -> None:  # noqa: ANN001
@@ -323,3 +343,47 @@ def _cmdline(pid: int) -> str:
         return Path(f"/proc/{pid}/cmdline").read_text().replace("\0", " ")
     except OSError:
         return ""
+
+
+def _orphaned_worker(out: str, spawner: int) -> None:
+    """A 'sweep worker' whose launcher dies before its job starts (the race of a SIGKILL)."""
+    from ccm.interrupts import RunInterrupted, die_with_launcher, interrupts_raise
+
+    deadline = time.monotonic() + 30.0
+    while os.getppid() == spawner and time.monotonic() < deadline:
+        time.sleep(0.01)
+    result = "launcher still alive"
+    try:
+        with interrupts_raise():
+            die_with_launcher()
+            result = "not signalled"
+            time.sleep(5.0)
+    except RunInterrupted as exc:
+        result = exc.name
+    Path(out).write_text(result)
+
+
+def _launcher_that_dies(out: str) -> None:
+    import multiprocessing
+
+    os.environ["CCM_LAUNCHER_PID"] = str(os.getpid())  # as ccm.interrupts.launcher_env
+    multiprocessing.get_context("fork").Process(
+        target=_orphaned_worker, args=(out, os.getpid())
+    ).start()
+    os._exit(0)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_a_worker_whose_launcher_died_before_its_job_stops(tmp_path: Path) -> None:
+    """The kernel's parent-death signal only covers a launcher that dies after the worker set
+    it; a worker that starts its job after its launcher was killed stops at once as well."""
+    import multiprocessing
+
+    out = tmp_path / "result"
+    launcher = multiprocessing.get_context("fork").Process(
+        target=_launcher_that_dies, args=(str(out),)
+    )
+    launcher.start()
+    launcher.join(30)
+    _wait_for(out.is_file, timeout=60)
+    assert out.read_text() == "SIGTERM"
