@@ -39,7 +39,8 @@ commands:
                         the papers' claims with verdicts (experiments/claims.yaml), metrics
                         over seeds, failures; --claims FILE for another claims file
   paper [--quick]       every paper experiment over its seeds (2 sweeps at a time), then
-                        report (make reproduce-paper); --out DIR, --lanes N, names to select
+                        report (make reproduce-paper); --out DIR, --lanes N, names to select,
+                        --force to start over (earlier records moved aside, not resumed)
   --help, -h            this message; `ccm run --help` shows Hydra's help and the config
   --version             print the version
 

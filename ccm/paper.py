@@ -38,20 +38,23 @@ PAPER_EXPERIMENTS = (
 )  # fmt: skip
 
 
-def sweep_command(name: str, out: Path, quick: bool, launcher: str = "local") -> list[str]:
-    """The ``ccm run -m`` command line of one experiment's sweep."""
-    cmd = [sys.executable, "-m", "ccm.cli", "run", "-m", f"experiment={name}"]
+def sweep_command(
+    name: str, out: Path, quick: bool, launcher: str = "local", force: bool = False
+) -> list[str]:
+    """The ``ccm run -m`` command line of one experiment's sweep (``force``: ``--force``,
+    earlier records moved aside, :mod:`ccm.run_record`)."""
+    cmd = [sys.executable, "-m", "ccm.cli", "run", *["--force"] * force, "-m", f"experiment={name}"]
     if quick:
         cmd += ["seed=0", "experiment.fast=true"]
     return [*cmd, f"hydra/launcher={launcher}", f"hydra.sweep.dir={out / name}"]
 
 
-def _run_sweep(
-    name: str, out: Path, quick: bool, launcher: str, t0: float
-) -> tuple[str, int, float]:
+def _run_sweep(name: str, out: Path, args: argparse.Namespace, t0: float) -> tuple[str, int, float]:
     start = time.perf_counter()
-    with open(out / f"{name}.log", "w", encoding="utf-8") as log:
-        cmd = sweep_command(name, out, quick, launcher)
+    with open(out / f"{name}.log", "a", encoding="utf-8") as log:  # earlier invocations kept
+        cmd = sweep_command(name, out, args.quick, args.launcher, args.force)
+        log.write(f"=== {time.strftime('%Y-%m-%d %H:%M:%S')}: {' '.join(cmd[1:])}\n")
+        log.flush()
         rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, check=False).returncode
     took = time.perf_counter() - start
     state = "ok" if rc == 0 else f"FAILED (exit {rc}; see {out / name}.log)"
@@ -80,6 +83,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=Path("outputs/paper"), help="output directory")
     p.add_argument("--lanes", type=int, default=2, help="sweeps run at once (default 2)")
     p.add_argument("--quick", action="store_true", help="seed 0, truncated trials")
+    p.add_argument(
+        "--force", action="store_true",
+        help="start over: earlier records are moved aside (<dir>.replaced-<time>), not resumed",
+    )  # fmt: skip
     p.add_argument(
         "--launcher", default="local",
         help="hydra/launcher preset for every sweep (local; slurm with --lanes 14 on a cluster)",
@@ -111,9 +118,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.perf_counter()
     print(f"ccm paper: {len(names)} sweeps, {args.lanes} at a time -> {args.out}", flush=True)
     with ThreadPoolExecutor(max_workers=args.lanes) as pool:
-        results = list(
-            pool.map(lambda n: _run_sweep(n, args.out, args.quick, args.launcher, t0), names)
-        )
+        results = list(pool.map(lambda n: _run_sweep(n, args.out, args, t0), names))
     from ccm.report import main as report
 
     report_rc = report([str(args.out)])

@@ -45,3 +45,6 @@ def test_every_paper_experiment_is_a_sweep_with_the_local_launcher(tmp_path: Pat
     assert "seed=0" not in full  # the seeds come from the experiment config
     quick = sweep_command("h1_adaptive_control", tmp_path, quick=True)
     assert {"seed=0", "experiment.fast=true"} <= set(quick)
+    assert "--force" not in full
+    forced = sweep_command("h1_adaptive_control", tmp_path, quick=False, force=True)
+    assert forced[forced.index("run") + 1] == "--force"  # ccm run --force -m …
