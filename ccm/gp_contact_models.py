@@ -55,7 +55,14 @@ from ccm.errors import (
     config_block,
 )
 from ccm.records import write_atomic, write_json_atomic
-from ccm.timeseries import check_mode, keep_trial, trial_path, write_timeseries
+from ccm.timeseries import (
+    FLOAT32_BITS,
+    check_bits,
+    check_mode,
+    keep_trial,
+    trial_path,
+    write_timeseries,
+)
 
 GUIDANCE = ("autonomous", "human")
 POSITIONS = ("fixed", "varying")
@@ -286,6 +293,7 @@ def run_gp_contact_models(cfg: DictConfig, compose: Callable, out_dir: Path) -> 
     trials: list[dict[str, Any]] = []
     curves: dict[str, dict[str, Any]] = {}
     mode = check_mode(cfg.experiment.get("timeseries", "first_last"))
+    bits = check_bits(cfg.experiment.get("timeseries_bits", FLOAT32_BITS))
     timing: dict[str, float] = {}
     for guidance in GUIDANCE:
         if guidance not in s["guidance"]:
@@ -306,7 +314,7 @@ def run_gp_contact_models(cfg: DictConfig, compose: Callable, out_dir: Path) -> 
                     trials.append(_trial_row(name, j, d))
                     if keep_trial(mode, j - 1, len(demos)):  # experiment.timeseries
                         columns = {"t": d["t"], "pos_x": d["x"], "force_x": d["f"]}
-                        write_timeseries(trial_path(out_dir, name, j), columns)
+                        write_timeseries(trial_path(out_dir, name, j), columns, bits)
     write_atomic(out_dir / "gp_contact_models.md", markdown_table(conditions))
     if cfg.experiment.get("figures", True):
         from ccm.plots_gp_contact import write_gp_contact_figure

@@ -50,7 +50,14 @@ from ccm.records import TrialRecorder, write_atomic, write_json_atomic
 from ccm.sim import BACKENDS, backend, make_sim
 from ccm.sim.base import Simulator, check_state_finite
 from ccm.tasks.task import Task, load_task
-from ccm.timeseries import check_mode, keep_trial, trial_path, write_timeseries
+from ccm.timeseries import (
+    FLOAT32_BITS,
+    check_bits,
+    check_mode,
+    keep_trial,
+    trial_path,
+    write_timeseries,
+)
 from ccm.types import Observation, StepInfo
 
 #: compose(extra_overrides) -> config; provided by the CLI (Hydra compose API)
@@ -263,6 +270,7 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
         "fast": fast,
         "max_retime_s": check_nonneg("experiment.max_retime_s", exp.get("max_retime_s", 60.0)),
         "timeseries": check_mode(exp.get("timeseries", "first_last")),
+        "timeseries_bits": check_bits(exp.get("timeseries_bits", FLOAT32_BITS)),
     }
 
 
@@ -424,7 +432,10 @@ def run_experiment(
                         bar.expect(bar.n + planned_left + later * (len(rec) - planned))
                     sim_time += len(rec) * comp.sim.control_dt
                     if keep_trial(settings["timeseries"], i, n_trials(ph)):  # experiment.timeseries
-                        write_timeseries(trial_path(out_dir, cond.name, trial), rec.arrays())
+                        write_timeseries(
+                            trial_path(out_dir, cond.name, trial), rec.arrays(),
+                            settings["timeseries_bits"],
+                        )  # fmt: skip
                     arrays = rec.arrays()
                     metrics = trial_metrics(
                         arrays,

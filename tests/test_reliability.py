@@ -295,6 +295,12 @@ CATALOGUE = [
         SINGLE,
         "experiment.max_time_s=1e-9",
     ),
+    case(
+        "timeseries-bits-out-of-range",
+        "experiment.timeseries_bits: must be an integer from 8 to 23",
+        SINGLE,
+        "experiment.timeseries_bits=30",
+    ),
     # booleans (tests/test_reliability.py::test_every_boolean_field_is_validated: all of them)
     case(
         "bool-fast-no",

@@ -16,7 +16,14 @@ import ccm
 from ccm.errors import ConfigError
 from ccm.plots_rail import write_rail_figure
 from ccm.runner import check_experiment, run_experiment
-from ccm.timeseries import keep_trial, read_timeseries, trial_path, write_timeseries
+from ccm.timeseries import (
+    check_bits,
+    keep_trial,
+    read_timeseries,
+    round_mantissa,
+    trial_path,
+    write_timeseries,
+)
 
 CCM = str(Path(sys.executable).parent / "ccm")
 #: a quick smoke run: two conditions, trials of 0.05 s, no figures
@@ -57,6 +64,46 @@ def test_parquet_round_trip_keeps_columns_dtypes_and_values(tmp_path: Path) -> N
         np.testing.assert_allclose(back[name], table[name], rtol=1e-7, atol=0, err_msg=name)
     assert np.isnan(back["pred_rmse_N"][:10]).all()
     assert not list(tmp_path.rglob("*.tmp"))  # written through a rename
+
+
+@pytest.mark.parametrize("bits", [23, 18, 12, 8])
+def test_rounded_mantissa_is_within_half_a_step_and_keeps_specials(bits: int) -> None:
+    rng = np.random.default_rng(1)
+    x = np.concatenate([rng.normal(0.0, 50.0, 5000), rng.normal(0.0, 1e-4, 5000)])
+    x32 = x.astype(np.float32)
+    r = round_mantissa(x32, bits)
+    assert r.dtype == np.float32
+    rel = np.abs(r.astype(np.float64) - x32) / np.abs(x32.astype(np.float64))
+    assert rel.max() <= 2.0 ** -(bits + 1)
+    if bits < 23:  # rounded, not truncated: the mean error is ~0, the mean |error| ~ a quarter step
+        assert rel.mean() > 2.0 ** -(bits + 3)
+        assert (r.view(np.uint32) & np.uint32((1 << (23 - bits)) - 1) == 0).all()
+    else:
+        np.testing.assert_array_equal(r, x32)
+    special = np.array([np.nan, np.inf, -np.inf, 0.0, -0.0, 3.0, 255.0], dtype=np.float32)
+    out = round_mantissa(special, bits)
+    assert np.isnan(out[0]) and list(out[1:3]) == [np.inf, -np.inf]
+    np.testing.assert_array_equal(out[3:], special[3:])  # small integers are exact
+
+
+def test_fewer_bits_make_smaller_files_of_noisy_data(tmp_path: Path) -> None:
+    rng = np.random.default_rng(2)
+    table = {"t": np.arange(20000) * 1e-3, "force_x": rng.normal(5.0, 0.05, 20000)}
+    sizes = {}
+    for bits in (23, 18):
+        write_timeseries(tmp_path / f"{bits}.parquet", table, bits)
+        sizes[bits] = (tmp_path / f"{bits}.parquet").stat().st_size
+        back = read_timeseries(tmp_path / f"{bits}.parquet")["force_x"]
+        np.testing.assert_allclose(back, table["force_x"], rtol=2.0 ** -(bits + 1) + 6e-8)
+    assert sizes[18] < 0.85 * sizes[23], sizes
+
+
+@pytest.mark.parametrize("value", [0, 7, 24, 18.5, "18", True, None])
+def test_timeseries_bits_out_of_range_is_a_one_line_error(value: Any) -> None:
+    with pytest.raises(
+        ConfigError, match=r"^experiment\.timeseries_bits: must be an integer from 8 to 23"
+    ):
+        check_bits(value)
 
 
 def test_keep_trial_policy() -> None:
