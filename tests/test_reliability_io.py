@@ -185,13 +185,16 @@ def test_unusable_output_directory_is_one_line(
 
 
 @pytest.mark.skipif(ROOT, reason="root writes into read-only directories")
+@pytest.mark.parametrize("multirun", [False, True], ids=["run", "sweep"])
 def test_read_only_output_directory_is_one_line(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], multirun: bool
 ) -> None:
     ro = tmp_path / "ro"
     ro.mkdir(mode=0o555)
-    code, _, err = run_in_process(["run", *FAST, f"hydra.run.dir={ro / 'run'}"], capsys)
-    _one_error(code, err, "hydra.run.dir: ")
+    key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
+    args = ["run", *(["-m"] if multirun else []), *FAST, f"{key}={ro / 'run'}"]
+    code, _, err = run_in_process(args, capsys)
+    _one_error(code, err, f"{key}: ")
     assert "is not writable" in err
 
 
