@@ -71,6 +71,7 @@ from ccm.sim.pybullet_robot import (
     task_inertia,
     tool_jacobian,
     tool_momentum_rate,
+    tool_point_in_link,
     tool_point_state,
 )
 from ccm.sim.pybullet_scene import (
@@ -136,6 +137,8 @@ class PyBullet3D(Simulator):
         tool = self.config.tool
         #: tool point in the tool's centre-of-mass frame (bottom face centre)
         self._tip_local = (0.0, 0.0, tool.size[2] / 2.0)
+        #: the same point in the tool's URDF link frame (for calculateJacobian), set on reset
+        self._tip_link = (0.0, 0.0, tool.size[2])
         self._weight = np.array([0.0, 0.0, -tool.mass * GRAVITY])
         self._tool_inertia = np.diag(box_inertia(tool.mass, tool.size))  # tool frame [kg m²]
         self._twist_prev: tuple[np.ndarray, np.ndarray] | None = None
@@ -202,6 +205,7 @@ class PyBullet3D(Simulator):
         self._table_contacts = []
         self._build_scene()
         self._robot, self._tool_link = load_robot(p, cid, self.config)
+        self._tip_link = tool_point_in_link(p, cid, self._robot, self._tool_link, self._tip_local)
         self._place_at_start()
         self._twist_prev = None
         self._refresh_tip()
@@ -413,7 +417,7 @@ class PyBullet3D(Simulator):
 
     def _jacobian(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         return tool_jacobian(
-            self._p, self._client, self._robot, self._tool_link, self._tip_local, q, dq
+            self._p, self._client, self._robot, self._tool_link, self._tip_link, q, dq
         )
 
     def _torques(self, wrench: np.ndarray) -> np.ndarray:
