@@ -164,3 +164,12 @@ def test_a_missing_link_inertial_is_refused(robot: Robot) -> None:
         urdf = robot_urdf(PyBullet3DConfig().tool, tmp)
         with pytest.raises(ValueError, match="panda_hand"):
             PandaDynamics(urdf, "ccm_tool", robot.tip_link, inertials)
+
+
+def test_the_torque_bench_times_both_paths() -> None:
+    """ccm.bench.dynamics runs (a few calls; the timings themselves are make bench's)."""
+    from ccm.bench.dynamics import bench_torques
+
+    row = bench_torques(calls=5, repeats=2)
+    assert set(row["us_per_call_median"]) == {"pinocchio", "pybullet"}
+    assert all(len(v) == 2 and min(v) > 0.0 for v in row["us_per_call_all"].values())
