@@ -155,13 +155,15 @@ def test_terms_are_not_overwritten_by_the_next_call(robot: Robot) -> None:
         assert np.array_equal(getattr(first, k), v), k
 
 
-def test_a_missing_link_inertial_is_refused(robot: Robot) -> None:
+def test_a_missing_link_or_inertial_is_refused(robot: Robot) -> None:
     from ccm.sim.pybullet_robot import link_inertials
 
     inertials = link_inertials(robot.p, robot.cid, robot.body)
-    del inertials["panda_hand"]
     with tempfile.TemporaryDirectory() as tmp:
         urdf = robot_urdf(PyBullet3DConfig().tool, tmp)
+        with pytest.raises(ValueError, match="no link 'ccm_toll'"):
+            PandaDynamics(urdf, "ccm_toll", robot.tip_link, inertials)
+        del inertials["panda_hand"]
         with pytest.raises(ValueError, match="panda_hand"):
             PandaDynamics(urdf, "ccm_tool", robot.tip_link, inertials)
 

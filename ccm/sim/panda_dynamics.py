@@ -116,8 +116,8 @@ class PandaDynamics:
         gravity: g [m/s²], along −z.
 
     Raises:
-        ValueError: if the URDF's movable joints are not ``panda_joint1..7`` in order, or a
-            moving link has no entry in ``inertials``.
+        ValueError: if the URDF's movable joints are not ``panda_joint1..7`` in order, it
+            has no ``tool_link``, or a moving link has no entry in ``inertials``.
     """
 
     def __init__(
@@ -134,6 +134,8 @@ class PandaDynamics:
         if inertials is not None:
             _replace_inertias(model, inertials)
         model.gravity = pin.Motion(np.array([0.0, 0.0, -gravity]), np.zeros(3))
+        if not model.existFrame(tool_link, pin.FrameType.BODY):
+            raise ValueError(f"the URDF has no link {tool_link!r}")
         link = model.frames[model.getFrameId(tool_link, pin.FrameType.BODY)]
         placement = link.placement * pin.SE3(np.eye(3), np.asarray(tip_link, float))
         self._frame = model.addFrame(
