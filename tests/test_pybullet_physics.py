@@ -205,6 +205,7 @@ def test_non_finite_command_raises() -> None:
         ({"patch_mode": "tiles"}, {}, START, "sim.patch_mode"),
         ({"footprint_grid": 0}, {}, START, "sim.footprint_grid"),
         ({"contact_stiffness": 0}, {}, START, "sim.contact_stiffness"),
+        ({"dynamics": "rbdl"}, {}, START, "sim.dynamics"),
         ({}, {"table": {"size": [1, 1]}}, START, "task.scene.table.height"),
         ({}, {"table": {"height": 0.1, "friction": -1}}, START, "task.scene.table.friction"),
         (
@@ -246,6 +247,12 @@ def test_bad_config_names_the_key(sim_cfg: dict, scene: dict, start: list, key: 
     assert exc.value.key == key
 
 
+def test_bad_dynamics_names_the_allowed_values() -> None:
+    with pytest.raises(ConfigError) as exc:
+        PyBullet3D.from_config({"dynamics": "rbdl"}, {}, START)
+    assert str(exc.value) == "sim.dynamics: unknown value 'rbdl'; allowed: pinocchio, pybullet"
+
+
 def test_unreachable_start_names_task_start() -> None:
     sim = make(start=[3.0, 0.0, 0.3])
     try:
@@ -270,6 +277,37 @@ def test_nullspace_posture_barely_moves_the_tool() -> None:
         print(f"\n[pybullet] null-space posture move: tool moved {moved * 1e3:.2f} mm")
         assert abs(sim.joint_positions[2] - q0[2]) > 0.1  # rad: the posture term acts
         assert moved < 1e-3
+    finally:
+        sim.close()
+
+
+def test_jacobian_is_the_tool_points() -> None:
+    """The torque loop's Jacobian is the tool point's: J matches a central difference of the
+    tool point's position and orientation along each joint (step 1e-6 rad: truncation
+    ~1e-12, rounding ~1e-10, so 1e-8). The centre of mass, 2 cm above, is off by 0.02."""
+    from ccm.sim.pybullet_robot import set_joint_positions, tool_point_state
+
+    sim = make()
+    try:
+        sim.reset(0)
+        p, cid, robot, link = sim._p, sim._client, sim._robot, sim._tool_link  # noqa: SLF001
+        q = np.array([0.3, -0.5, 0.4, -2.1, 0.5, 1.4, 0.2])
+        jac = sim._jacobian(q, np.zeros(7))  # noqa: SLF001
+        eps = 1e-6
+        fd = np.zeros((6, 7))
+        for j in range(7):
+            dq = np.zeros(7)
+            dq[j] = eps
+            set_joint_positions(p, cid, robot, q + dq)
+            pos_a, orn_a, *_ = tool_point_state(p, cid, robot, link, sim._tip_local, False)  # noqa: SLF001
+            set_joint_positions(p, cid, robot, q - dq)
+            pos_b, orn_b, *_ = tool_point_state(p, cid, robot, link, sim._tip_local, False)  # noqa: SLF001
+            fd[:3, j] = (pos_a - pos_b) / (2 * eps)
+            fd[3:, j] = orientation_error(orn_a, orn_b) / (2 * eps)
+        print(
+            f"\n[pybullet] tool-point Jacobian vs central difference: {np.abs(jac - fd).max():.2g}"
+        )
+        assert np.abs(jac - fd).max() < 1e-8
     finally:
         sim.close()
 
@@ -406,8 +444,9 @@ def test_the_table_friction_ramps_across_the_tool_face(mode: str) -> None:
         sim.close()
 
 
-def test_runner_trial_press_and_slide_3d() -> None:
-    """End to end through ccm.runner: approach, press 10 N, slide 15 cm across a patch."""
+def press_slide_trial(**sim_cfg: Any) -> tuple[dict[str, np.ndarray], float]:
+    """A 2.5 s trial through ccm.runner with FixedImpedance: approach, press 10 N, slide
+    15 cm across a patch. Returns the recorded arrays and the wall time [s]."""
     from ccm.runner import Components, run_trial
     from ccm.tasks.task import load_task
 
@@ -448,24 +487,52 @@ def test_runner_trial_press_and_slide_3d() -> None:
             },
         ],  # fmt: skip
     }
-    sim = make_sim({"name": "pybullet3d"}, task_cfg["scene"], task_cfg["start"])
+    sim = make_sim({"name": "pybullet3d", **sim_cfg}, task_cfg["scene"], task_cfg["start"])
     task = load_task(task_cfg, sim.control_dt)
     ctrl = FixedImpedance(stiffness=[500.0, 500.0, 500.0])
     try:
         t0 = time.perf_counter()
         rec = run_trial(Components(sim=sim, task=task, controller=ctrl), seed=0, duration_s=2.5)
-        wall = time.perf_counter() - t0
-        a = rec.arrays()
-        sliding = (a["t"] > 1.2) & (a["t"] < 2.4)
-        err = np.abs(a["force_z"][sliding] - a["true_force_z"][sliding])
-        mus = set(np.unique(a["truth_surface_friction"][sliding]).tolist())
-        print(
-            f"\n[pybullet] runner press+slide 2.5 s in {wall:.2f} s ({2.5 / wall:.1f}x real "
-            f"time, with FixedImpedance); sliding |Fz_meas - Fz_true| max {err.max():.3f} N, "
-            f"mean Fz_true {a['true_force_z'][sliding].mean():.2f} N"
-        )
-        assert {0.3, 0.6} <= mus  # crossed the patch
-        assert float(np.mean(a["true_force_z"][sliding])) == pytest.approx(10.0, rel=0.1)
-        assert err.max() < 0.5  # N: sensor path vs contact truth while sliding
+        return rec.arrays(), time.perf_counter() - t0
     finally:
         sim.close()
+
+
+def test_runner_trial_press_and_slide_3d() -> None:
+    """End to end through ccm.runner: approach, press 10 N, slide 15 cm across a patch."""
+    a, wall = press_slide_trial()
+    sliding = (a["t"] > 1.2) & (a["t"] < 2.4)
+    err = np.abs(a["force_z"][sliding] - a["true_force_z"][sliding])
+    mus = set(np.unique(a["truth_surface_friction"][sliding]).tolist())
+    print(
+        f"\n[pybullet] runner press+slide 2.5 s in {wall:.2f} s ({2.5 / wall:.1f}x real "
+        f"time, with FixedImpedance); sliding |Fz_meas - Fz_true| max {err.max():.3f} N, "
+        f"mean Fz_true {a['true_force_z'][sliding].mean():.2f} N"
+    )
+    assert {0.3, 0.6} <= mus  # crossed the patch
+    assert float(np.mean(a["true_force_z"][sliding])) == pytest.approx(10.0, rel=0.1)
+    assert err.max() < 0.5  # N: sensor path vs contact truth while sliding
+
+
+def test_pinocchio_and_pybullet_dynamics_give_the_same_trial() -> None:
+    """sim.dynamics only changes where the torque law's terms come from: the press-and-slide
+    trial records the same positions and forces with either.
+
+    The torques differ by rounding and by the PyBullet path's forward-difference J̇ q̇
+    (~1e-10 relative); measured over the trial (impact included, 250 N peak): 2e-10 m,
+    3.6e-5 N (the contact stiffness, 4 points x 1e5 N/m, turns 1e-10 m into 4e-5 N).
+    Tolerances 1e-8 m and 1e-3 N leave a margin of ~30 and catch any real model difference
+    (measured: h, Λ or J scaled by 1.01 moves the tool by ~1 mm and the forces by > 250 N).
+    """
+    a, _ = press_slide_trial(dynamics="pinocchio")
+    b, _ = press_slide_trial(dynamics="pybullet")
+    assert len(a["t"]) == len(b["t"])
+
+    def worst(*keys: str) -> float:
+        return max(float(np.abs(a[k] - b[k]).max()) for k in keys)
+
+    pos = worst("pos_x", "pos_y", "pos_z")
+    force = worst("force_x", "force_y", "force_z", "true_force_x", "true_force_y", "true_force_z")
+    print(f"\n[pybullet] pinocchio vs pybullet dynamics: |Δpos| {pos:.2g} m, |ΔF| {force:.2g} N")
+    assert pos < 1e-8
+    assert force < 1e-3

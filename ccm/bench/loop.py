@@ -15,6 +15,7 @@ import json
 import platform
 import statistics
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,10 @@ TASKS = ("smoke", "multi_spring", "porridge_stirring", "slide_surfaces_2d")
 TARGETS = {"multi_spring": 50.0, "changing_surface": 5.0}  # issues #2 and #4
 
 
-def _components(task: str, controller: str, sim: str | None = None) -> Any:
+def _components(
+    task: str, controller: str, sim: str | None = None, extra: Sequence[str] = ()
+) -> Any:
+    """Task, controller and simulator as ``ccm run`` builds them (``extra``: more overrides)."""
     from hydra import compose, initialize_config_dir
 
     from ccm.cli import config_dir
@@ -31,7 +35,8 @@ def _components(task: str, controller: str, sim: str | None = None) -> Any:
 
     with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="bench"):
         overrides = [f"task={task}", f"controller={controller}"]
-        cfg = compose("config", overrides=overrides + ([f"sim={sim}"] if sim else []))
+        overrides += ([f"sim={sim}"] if sim else []) + list(extra)
+        cfg = compose("config", overrides=overrides)
     return build_components(cfg)
 
 

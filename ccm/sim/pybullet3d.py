@@ -19,16 +19,21 @@ described in :mod:`ccm.sim.pybullet_robot`):
       N = I − Jᵀ Λ J M⁻¹,  Λ = (J M⁻¹ Jᵀ)⁻¹          (dynamically consistent null space)
 
   The dynamically consistent projector is used so the posture term produces no
-  task-space acceleration, and ``− Jᵀ Λ J̇ q̇`` (``task_coriolis_compensation``, J̇ q̇ by a
-  directional finite difference of the Jacobian) removes the velocity-product term, so that
-  ``ẍ = Λ⁻¹ W``: with a zero wrench the tool stays put (issue #4 check 3) even while the
-  posture term moves the elbow. The simple projector ``I − Jᵀ J⁺ᵀ`` would leak posture
-  torques into the task space.
+  task-space acceleration, and ``− Jᵀ Λ J̇ q̇`` (``task_coriolis_compensation``; J̇ q̇ from
+  the model or, with ``dynamics: pybullet``, a directional finite difference of the
+  Jacobian) removes the velocity-product term, so that ``ẍ = Λ⁻¹ W``: with a zero wrench
+  the tool stays put (issue #4 check 3) even while the posture term moves the elbow. The
+  simple projector ``I − Jᵀ J⁺ᵀ`` would leak posture torques into the task space.
   ``m_hold = K_o e_R − D_o ω`` is an optional orientation hold toward the start orientation
   (``orientation_stiffness``/``orientation_damping``): ccm's controllers close the
   translational loop only in 3D (``FixedImpedance.rotation_torque`` returns zeros), so the
   robot keeps its tool orientation itself. Set both gains to 0 to leave rotation to the
   commanded torque alone. Link and joint damping are set to 0 so ``h`` is exact.
+* **Model terms** (``dynamics``). Default ``pinocchio``: J, J̇ q̇ (exact), h, M⁻¹ Jᵀ and Λ
+  from one Pinocchio call per physics step (:mod:`ccm.sim.panda_dynamics`: the same URDF
+  and PyBullet's own link inertias, checked against PyBullet's queries to 1e-8).
+  ``pybullet``: ``calculateJacobian`` (twice: J̇ q̇ is the forward difference above),
+  ``calculateInverseDynamics``, ``calculateMassMatrix`` and two ``np.linalg.inv``.
 * **Table patches** (``patch_mode``). Default ``friction_map``: the table top is one box
   and, before every physics step, its friction is set to that of the patch under the tool
   point (the table's own value elsewhere); patches are drawn as visual-only boxes in the
@@ -47,7 +52,7 @@ described in :mod:`ccm.sim.pybullet_robot`):
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -66,11 +71,13 @@ from ccm.sim.pybullet_robot import (
     nullspace_projection,
     orientation_error,
     quat_to_matrix,
+    robot_dynamics,
     set_joint_positions,
     start_ik,
     task_inertia,
     tool_jacobian,
     tool_momentum_rate,
+    tool_point_in_link,
     tool_point_state,
 )
 from ccm.sim.pybullet_scene import (
@@ -89,6 +96,9 @@ from ccm.sim.pybullet_scene import (
 from ccm.sim.sensor import FTSensor
 from ccm.sim.start_pose import check_start_3d
 from ccm.types import Command, Observation, StepInfo
+
+if TYPE_CHECKING:
+    from ccm.sim.panda_dynamics import PandaDynamics
 
 __all__ = [
     "DOWN", "GRAVITY", "N_ARM", "PANDA_READY", "PATCH_MODES", "Box3DSpec", "PyBullet3D",
@@ -136,6 +146,10 @@ class PyBullet3D(Simulator):
         tool = self.config.tool
         #: tool point in the tool's centre-of-mass frame (bottom face centre)
         self._tip_local = (0.0, 0.0, tool.size[2] / 2.0)
+        #: the same point in the tool's URDF link frame (for calculateJacobian), set on reset
+        self._tip_link = (0.0, 0.0, tool.size[2])
+        #: Pinocchio's model of the arm (``sim.dynamics: pinocchio``), built on the first reset
+        self._dynamics: PandaDynamics | None = None
         self._weight = np.array([0.0, 0.0, -tool.mass * GRAVITY])
         self._tool_inertia = np.diag(box_inertia(tool.mass, tool.size))  # tool frame [kg m²]
         self._twist_prev: tuple[np.ndarray, np.ndarray] | None = None
@@ -202,6 +216,9 @@ class PyBullet3D(Simulator):
         self._table_contacts = []
         self._build_scene()
         self._robot, self._tool_link = load_robot(p, cid, self.config)
+        self._tip_link = tool_point_in_link(p, cid, self._robot, self._tool_link, self._tip_local)
+        if self.config.dynamics == "pinocchio" and self._dynamics is None:  # once: same robot
+            self._dynamics = robot_dynamics(p, cid, self._robot, self.config.tool, self._tip_link)
         self._place_at_start()
         self._twist_prev = None
         self._refresh_tip()
@@ -413,19 +430,21 @@ class PyBullet3D(Simulator):
 
     def _jacobian(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         return tool_jacobian(
-            self._p, self._client, self._robot, self._tool_link, self._tip_local, q, dq
+            self._p, self._client, self._robot, self._tool_link, self._tip_link, q, dq
         )
 
     def _torques(self, wrench: np.ndarray) -> np.ndarray:
-        """τ = Jᵀ W + h(q, q̇) + N τ₀ (module docstring)."""
-        p, cid, cfg = self._p, self._client, self.config
+        """τ = Jᵀ W + h(q, q̇) − Jᵀ Λ J̇ q̇ + N τ₀ (module docstring)."""
+        cfg = self.config
         q, dq = self._joint_state()
         if not all_finite(q, dq):
             raise SimulationDiverged(
                 f"non-finite joint state at t={self._steps * self.dt:.3f} s: q={q.tolist()}"
             )
-        jac = self._jacobian(q, dq)
-        h = inverse_dynamics(p, cid, self._robot, q, dq)
+        use_null = cfg.nullspace_stiffness > 0.0 or cfg.nullspace_damping > 0.0
+        jac, h, jdq, minv_jt, lam = self._model_terms(
+            q, dq, use_null or cfg.task_coriolis_compensation
+        )
         w = wrench
         if cfg.orientation_stiffness > 0.0 or cfg.orientation_damping > 0.0:
             _, orn, _, omega = self._tip
@@ -434,19 +453,31 @@ class PyBullet3D(Simulator):
             w = wrench.copy()
             w[3:] += hold
         tau = jac.T @ w + h
-        use_null = cfg.nullspace_stiffness > 0.0 or cfg.nullspace_damping > 0.0
-        if not (use_null or cfg.task_coriolis_compensation):
-            return tau
-        minv_jt, lam = task_inertia(p, cid, self._robot, q, jac)  # M⁻¹ Jᵀ, Λ = (J M⁻¹ Jᵀ)⁻¹
         if cfg.task_coriolis_compensation:
-            # − Jᵀ Λ J̇ q̇, with J̇ q̇ as the directional derivative of J along q̇
-            eps = 1e-6
-            jdq = (self._jacobian(q + eps * dq, dq) - jac) @ dq / eps
             tau -= jac.T @ (lam @ jdq)
         if use_null:
             tau0 = cfg.nullspace_stiffness * (self._q_rest - q) - cfg.nullspace_damping * dq
             tau += nullspace_projection(jac, lam, minv_jt, tau0)  # N τ₀
         return tau
+
+    def _model_terms(self, q: np.ndarray, dq: np.ndarray, task: bool) -> tuple[Any, ...]:
+        """``(J, h, J̇ q̇, M⁻¹ Jᵀ, Λ)`` of the torque law (``sim.dynamics``): Pinocchio's in
+        one call, or PyBullet's queries (the last three only if ``task``, else ``None``)."""
+        if self._dynamics is not None:
+            t = self._dynamics.compute(q, dq)
+            return t.jacobian, t.h, t.jdot_qdot, t.minv_jt, t.lam
+        p, cid = self._p, self._client
+        jac = self._jacobian(q, dq)
+        h = inverse_dynamics(p, cid, self._robot, q, dq)
+        if not task:
+            return jac, h, None, None, None
+        minv_jt, lam = task_inertia(p, cid, self._robot, q, jac)  # M⁻¹ Jᵀ, Λ = (J M⁻¹ Jᵀ)⁻¹
+        jdq = None
+        if self.config.task_coriolis_compensation:
+            # J̇ q̇ as the directional derivative of J along q̇ (forward difference)
+            eps = 1e-6
+            jdq = (self._jacobian(q + eps * dq, dq) - jac) @ dq / eps
+        return jac, h, jdq, minv_jt, lam
 
     # ------------------------------------------------------------------ sensing
 

@@ -64,12 +64,15 @@ import shutil
 import tempfile
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ccm.errors import ConfigError
 from ccm.sim.pybullet_scene import PyBullet3DConfig, ToolSpec
+
+if TYPE_CHECKING:
+    from ccm.sim.panda_dynamics import LinkInertial, PandaDynamics
 
 GRAVITY = 9.81  # m/s^2, along -z
 N_ARM = 7  # Panda arm joints (the only movable joints once the fingers are removed)
@@ -218,6 +221,35 @@ def load_robot(p: Any, cid: int, config: PyBullet3DConfig) -> tuple[int, int]:
     return robot, tool_link
 
 
+def link_inertials(p: Any, cid: int, robot: int) -> dict[str, LinkInertial]:
+    """The inertials PyBullet simulates each link of ``robot`` with (not the base), by link
+    name: the URDF's mass and centre of mass, principal moments from the collision shape
+    (:mod:`ccm.sim.panda_dynamics` explains why this matters)."""
+    from ccm.sim.panda_dynamics import LinkInertial
+
+    out = {}
+    for j in range(p.getNumJoints(robot, physicsClientId=cid)):
+        name = p.getJointInfo(robot, j, physicsClientId=cid)[12].decode()
+        mass, _, principal, com, orn = p.getDynamicsInfo(robot, j, physicsClientId=cid)[:5]
+        out[name] = LinkInertial(mass, tuple(com), tuple(orn), tuple(principal))
+    return out
+
+
+def robot_dynamics(
+    p: Any, cid: int, robot: int, tool: ToolSpec, tip_link: Sequence[float]
+) -> PandaDynamics:
+    """Pinocchio's model of the loaded ``robot`` (the URDF :func:`robot_urdf` writes for
+    ``tool``, PyBullet's link inertials) with the tool point ``tip_link`` (link frame)."""
+    from ccm.sim.panda_dynamics import PandaDynamics
+
+    tmp = tempfile.mkdtemp(prefix="ccm_panda_")
+    try:
+        urdf = robot_urdf(tool, tmp)
+        return PandaDynamics(urdf, "ccm_tool", tip_link, link_inertials(p, cid, robot), GRAVITY)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 # --------------------------------------------------------------------------- kinematics
 
 
@@ -254,18 +286,35 @@ def tool_point_state(
     return pos, orn, lin, np.array(w), np.array(v)
 
 
+def tool_point_in_link(
+    p: Any, cid: int, robot: int, tool_link: int, tip_local: Sequence[float]
+) -> tuple[float, float, float]:
+    """The tool point in the tool's URDF link frame, from ``tip_local`` in its centre-of-mass
+    frame: ``c + R_c tip_local`` with PyBullet's local inertial frame ``(c, R_c)``."""
+    com, orn = p.getDynamicsInfo(robot, tool_link, physicsClientId=cid)[3:5]
+    r = _quat_rotate(orn, tip_local)
+    return (com[0] + r[0], com[1] + r[1], com[2] + r[2])
+
+
 def tool_jacobian(
     p: Any,
     cid: int,
     robot: int,
     tool_link: int,
-    tip_local: Sequence[float],
+    tip_link: Sequence[float],
     q: np.ndarray,
     dq: np.ndarray,
 ) -> np.ndarray:
-    """Geometric Jacobian ``[J_v; J_ω]`` (6, 7) of the tool point in the world frame."""
+    """Geometric Jacobian ``[J_v; J_ω]`` (6, 7) of the tool point in the world frame.
+
+    ``tip_link`` is the tool point in the tool's *URDF link* frame
+    (:func:`tool_point_in_link`): ``calculateJacobian`` takes its point in that frame, not in
+    the centre-of-mass frame its documentation names (measured: with the centre-of-mass-frame
+    offset its J_v differs from a finite difference of the tool point by 0.02 m/rad, the
+    distance to the centre of mass; with the link-frame point by 1e-10).
+    """
     lin, ang = p.calculateJacobian(
-        robot, tool_link, list(tip_local), q.tolist(), dq.tolist(), [0.0] * N_ARM,
+        robot, tool_link, list(tip_link), q.tolist(), dq.tolist(), [0.0] * N_ARM,
         physicsClientId=cid,
     )  # fmt: skip
     return np.array((*lin, *ang))
@@ -296,6 +345,7 @@ def start_ik(
             outside its limits.
     """
     q = np.array(q_seed, dtype=float)
+    tip_link = tool_point_in_link(p, cid, robot, tool_link, tip_local)
     lam2 = 1e-4
     for _ in range(300):
         set_joint_positions(p, cid, robot, q)
@@ -303,7 +353,7 @@ def start_ik(
         e = np.concatenate([position - pos, orientation_error(orientation, orn)])
         if float(np.max(np.abs(e))) < 1e-7:
             break
-        jac = tool_jacobian(p, cid, robot, tool_link, tip_local, q, np.zeros(N_ARM))
+        jac = tool_jacobian(p, cid, robot, tool_link, tip_link, q, np.zeros(N_ARM))
         dq = jac.T @ np.linalg.solve(jac @ jac.T + lam2 * np.eye(6), e)
         q = q + dq
     else:

@@ -52,9 +52,12 @@ _SIM_KEYS = (
     "contact_damping",
     "patch_mode",
     "footprint_grid",
+    "dynamics",
     "sensor",
 )
 PATCH_MODES = ("friction_map", "footprint", "boxes")
+#: where the torque loop's model terms come from (``PyBullet3DConfig.dynamics``)
+DYNAMICS = ("pinocchio", "pybullet")
 
 
 # --------------------------------------------------------------------------- config
@@ -113,6 +116,10 @@ class PyBullet3DConfig:
             :mod:`ccm.sim.footprint_friction`) or ``boxes`` (thin patch boxes flush with the
             top; the tool's edge catches on their side faces).
         footprint_grid: n of the n × n grid ``footprint`` integrates the face on.
+        dynamics: where the torque loop's J, J̇ q̇, h, M⁻¹ Jᵀ and Λ come from: ``pinocchio``
+            (one call per physics step, :mod:`ccm.sim.panda_dynamics`) or ``pybullet``
+            (its ``calculateJacobian`` twice, ``calculateInverseDynamics``,
+            ``calculateMassMatrix`` and two inverses). The same model either way.
         sensor: F/T sensor noise and bias (force (3,), torque (3,)).
     """
 
@@ -132,6 +139,7 @@ class PyBullet3DConfig:
     contact_damping: float = 1.0e3
     patch_mode: str = "friction_map"
     footprint_grid: int = 32
+    dynamics: str = "pinocchio"
     sensor: SensorConfig = field(default_factory=lambda: SensorConfig.ideal(3, 3))
 
     @classmethod
@@ -180,6 +188,7 @@ class PyBullet3DConfig:
             footprint_grid=check_int_positive(
                 f"{prefix}.footprint_grid", d.get("footprint_grid", cls.footprint_grid)
             ),
+            dynamics=check_choice(f"{prefix}.dynamics", d.get("dynamics", cls.dynamics), DYNAMICS),
             sensor=SensorConfig.from_mapping(d.get("sensor"), 3, 3, f"{prefix}.sensor"),
         )
 
