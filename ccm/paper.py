@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import time
@@ -49,17 +50,28 @@ def sweep_command(
     return [*cmd, f"hydra/launcher={launcher}", f"hydra.sweep.dir={out / name}"]
 
 
-def _run_sweep(name: str, out: Path, args: argparse.Namespace, t0: float) -> tuple[str, int, float]:
+def _run_sweep(
+    name: str, out: Path, args: argparse.Namespace, t0: float
+) -> tuple[str, int, float, float]:
+    """Run one sweep; ``(name, exit code, wall s, CPU s)``. The CPU time is the sweep
+    process's user + system time and that of the workers it waited for (``wait4``: a local
+    sweep's loky workers; a cluster's jobs are not counted)."""
     start = time.perf_counter()
     with open(out / f"{name}.log", "a", encoding="utf-8") as log:  # earlier invocations kept
         cmd = sweep_command(name, out, args.quick, args.launcher, args.force)
         log.write(f"=== {time.strftime('%Y-%m-%d %H:%M:%S')}: {' '.join(cmd[1:])}\n")
         log.flush()
-        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, check=False).returncode
+        proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = rc = os.waitstatus_to_exitcode(status)
     took = time.perf_counter() - start
+    cpu = usage.ru_utime + usage.ru_stime
     state = "ok" if rc == 0 else f"FAILED (exit {rc}; see {out / name}.log)"
-    print(f"[{time.perf_counter() - t0:6.0f} s] {name}: {state} in {took:.0f} s", flush=True)
-    return name, rc, took
+    print(
+        f"[{time.perf_counter() - t0:6.0f} s] {name}: {state} in {took:.0f} s "
+        f"({cpu / 60:.1f} CPU-min)", flush=True,
+    )  # fmt: skip
+    return name, rc, took, cpu
 
 
 def _record_timing(path: Path, entry: dict) -> None:
@@ -123,12 +135,13 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     report_rc = report([str(args.out)])
     wall = time.perf_counter() - t0
-    failed = [n for n, rc, _ in results if rc != 0]
+    failed = [n for n, rc, _, _ in results if rc != 0]
     _record_timing(
         args.out / "paper_timing.json",
         {"wall_s": round(wall, 1), "lanes": args.lanes, "quick": args.quick,
          "launcher": args.launcher,
-         "sweeps_s": {n: round(s, 1) for n, _, s in results}, "failed": failed},
+         "sweeps_s": {n: round(s, 1) for n, _, s, _ in results},
+         "sweeps_cpu_s": {n: round(c, 1) for n, _, _, c in results}, "failed": failed},
     )  # fmt: skip
     print(f"ccm paper: {len(names) - len(failed)}/{len(names)} sweeps ok, wall {wall / 60:.1f} min")
     return 1 if failed or report_rc != 0 else 0

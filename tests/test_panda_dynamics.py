@@ -25,11 +25,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ccm.sim.panda_dynamics import PandaDynamics, link_inertials, robot_dynamics
 from ccm.sim.pybullet_robot import (
     GRAVITY,
     inverse_dynamics,
     load_robot,
-    robot_dynamics,
     robot_urdf,
     task_inertia,
     tool_jacobian,
@@ -40,7 +40,6 @@ from ccm.sim.pybullet_scene import PyBullet3DConfig
 pytest.importorskip("pybullet")
 pytest.importorskip("pinocchio")
 
-from ccm.sim.panda_dynamics import PandaDynamics  # noqa: E402 - needs pinocchio
 
 N_SAMPLES = 20
 TOL = 1e-8
@@ -156,7 +155,6 @@ def test_terms_are_not_overwritten_by_the_next_call(robot: Robot) -> None:
 
 
 def test_a_missing_link_or_inertial_is_refused(robot: Robot) -> None:
-    from ccm.sim.pybullet_robot import link_inertials
 
     inertials = link_inertials(robot.p, robot.cid, robot.body)
     with tempfile.TemporaryDirectory() as tmp:

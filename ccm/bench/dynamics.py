@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.bench.loop import _components
+from ccm.bench.components import components as _components
 from ccm.sim.pybullet_scene import DYNAMICS
 
 

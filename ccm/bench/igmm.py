@@ -18,7 +18,7 @@ import statistics
 import time
 import tracemalloc
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -259,6 +259,41 @@ def bench_igmm_long(
         "wall_s": wall,
         "warm_up_s": warm,
     }
+
+
+def bench_learning(long_steps: int) -> dict[str, Any]:
+    """The IGMM rows of ``make bench``: one update + predict, and the flat-cost stream."""
+    return {"igmm_step": bench_igmm_step(), "igmm_long": bench_igmm_long(n_steps=long_steps)}
+
+
+def print_learning(
+    avic: Mapping[str, Any], step: Mapping[str, Any], long: Mapping[str, Any]
+) -> None:
+    """The per-step cost table: the AVIC step in the loop, the IGMM step, the long stream."""
+    print()
+    print(f"{'per-step cost (median)':<58}{'µs':>8}{'target':>10}")
+    print(
+        f"{'AVIC step: IGMM update + GMR predict + Eq. 4a-4c (loop)':<58}"
+        f"{avic['us_per_step_median']:>8.1f}{'≤' + format(avic['target_us'], 'g'):>10}"
+    )
+    print(
+        f"{'IGMM partial_fit(1 point) + GMR predict (synthetic stream)':<58}"
+        f"{step['us_per_step']:>8.1f}{'':>10}"
+    )
+    print(
+        f"IGMM over {long['steps']:,} steps: {long['us_first']:.1f} µs (first "
+        f"{long['window']:,}) -> {long['us_last']:.1f} µs (last {long['window']:,}), "
+        f"ratio {long['ratio']:.2f} (target ≤1.2)"
+    )
+    print(
+        f"  robust: median of the first vs last 10 windows {long['us_first_10_windows']:.1f} -> "
+        f"{long['us_last_10_windows']:.1f} µs, ratio {long['ratio_10_windows']:.2f}"
+    )
+    print(
+        f"  model memory {long['model_bytes_start']} -> {long['model_bytes_end']} B; "
+        f"tracemalloc net per window {long['tracemalloc_net_bytes_early_window']} -> "
+        f"{long['tracemalloc_net_bytes_late_window']} B"
+    )
 
 
 def main() -> dict[str, Any]:

@@ -19,25 +19,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from ccm.bench.components import components as _components
+from ccm.bench.dynamics import bench_torques
+
 TASKS = ("smoke", "multi_spring", "porridge_stirring", "slide_surfaces_2d")
 #: issue #2 target for multi_spring
 TARGETS = {"multi_spring": 50.0, "changing_surface": 5.0}  # issues #2 and #4
-
-
-def _components(
-    task: str, controller: str, sim: str | None = None, extra: Sequence[str] = ()
-) -> Any:
-    """Task, controller and simulator as ``ccm run`` builds them (``extra``: more overrides)."""
-    from hydra import compose, initialize_config_dir
-
-    from ccm.cli import config_dir
-    from ccm.runner import build_components
-
-    with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="bench"):
-        overrides = [f"task={task}", f"controller={controller}"]
-        overrides += ([f"sim={sim}"] if sim else []) + list(extra)
-        cfg = compose("config", overrides=overrides)
-    return build_components(cfg)
 
 
 def bench_avic_step(task: str = "porridge_stirring", trials: int = 3) -> dict[str, Any]:
@@ -63,7 +50,7 @@ def bench_avic_step(task: str = "porridge_stirring", trials: int = 3) -> dict[st
         "steps": len(ns),
         "us_per_step_median": statistics.median(ns[1000:]) / 1e3,  # after numba warm-up
         "n_components_end": ctrl.signals()["n_components"],
-        "target_us": 25.0,
+        "target_us": 15.0,  # issue #20 (issue #3: 25)
     }
 
 
@@ -74,12 +61,16 @@ def bench_task(
     sim: str | None = None,
     fresh: bool = False,
 ) -> dict[str, Any]:
-    """Median timing of one trial of ``task`` with ``controller`` (see the module docstring)."""
+    """Median timing of one trial of ``task`` with ``controller`` (see the module docstring),
+    each trial followed by the engine's raw loop for as many control steps on the same
+    simulator (:func:`ccm.bench.engines.raw_loop`); ``ratio_vs_raw`` is the median over the
+    repeats of ccm's wall time over the raw loop's."""
+    from ccm.bench.engines import raw_loop
     from ccm.runner import run_trial
 
     comp = _components(task, controller, sim)
     sim_time = comp.task.pattern.duration
-    walls = []
+    walls, raws = [], []
     for r in range(repeats):
         if fresh and r > 0:
             comp.sim.close()
@@ -87,10 +78,15 @@ def bench_task(
         t0 = time.perf_counter()
         rec = run_trial(comp, seed=r, duration_s=sim_time)
         walls.append(time.perf_counter() - t0)
+        raws.append(raw_loop(comp.sim, len(rec), seed=r))
     comp.sim.close()
     wall = statistics.median(walls)
     steps = len(rec)
+    raw = statistics.median(raws)
     return {
+        "raw_us_per_control_step": 1e6 * raw / steps,
+        "raw_x_realtime": sim_time / raw,
+        "ratio_vs_raw": statistics.median(w / r for w, r in zip(walls, raws, strict=True)),
         "task": task,
         "controller": controller,
         "sim": sim or "pymunk2d",
@@ -104,91 +100,130 @@ def bench_task(
     }
 
 
-def main(argv: list[str] | None = None) -> int:
-    from ccm.bench.h3 import bench_h3, print_h3
-    from ccm.bench.igmm import bench_igmm_long, bench_igmm_step
-    from ccm.bench.mpc import bench_mpc, print_mpc
-
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("bench.json"))
-    parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument(
-        "--long-steps",
-        type=int,
-        default=3_600_000,
-        help="steps of the IGMM flat-cost run (issue #3: 3.6 million)",
-    )
-    parser.add_argument(
-        "--no-h3", action="store_true", help="skip the whole-experiment H3 row (~4 min)"
-    )
-    parser.add_argument(
-        "--no-mpc",
-        action="store_true",
-        help="skip the GP-MPC solve-rate rows (~1 min, + a one-time compile per problem)",
-    )
-    args = parser.parse_args(argv)
-    rows = [bench_task(t, args.repeats) for t in TASKS]
-    rows.append(bench_task("porridge_stirring", args.repeats, controller="avic"))
-    # issue #4: the PyBullet changing-surface task with the full mode-detection stack
-    rows.append(
-        bench_task("changing_surface", args.repeats, "avic_modes", sim="pybullet3d", fresh=True)
-    )
+def print_loop_rows(rows: Sequence[dict[str, Any]]) -> None:
+    """The loop table: ccm's µs per control step and × real time, the raw engine loop's µs
+    per step on the same scene, and the ratio ccm / raw (timed in turn, one process)."""
     print(
-        f"{'task':<20}{'controller':<17}{'sim [s]':>8}{'steps':>7}{'wall [ms]':>10}"
-        f"{'µs/step':>9}{'× real time':>13}{'target':>8}"
+        f"{'task':<19}{'controller':<16}{'sim [s]':>8}{'steps':>7}{'µs/step':>9}"
+        f"{'× real time':>12}{'target':>7}{'raw µs':>8}{'ccm/raw':>8}"
     )
     for r in rows:
         tgt = f"≥{r['target_x_realtime']:.0f}" if r["target_x_realtime"] else ""
         print(
-            f"{r['task']:<20}{r['controller']:<17}{r['sim_time_s']:>8.2f}"
-            f"{r['control_steps']:>7d}{1e3 * r['median_wall_s']:>10.1f}"
-            f"{r['us_per_control_step']:>9.1f}{r['x_realtime']:>13.1f}{tgt:>8}"
+            f"{r['task']:<19}{r['controller']:<16}{r['sim_time_s']:>8.2f}"
+            f"{r['control_steps']:>7d}{r['us_per_control_step']:>9.1f}"
+            f"{r['x_realtime']:>12.1f}{tgt:>7}{r['raw_us_per_control_step']:>8.1f}"
+            f"{r['ratio_vs_raw']:>8.2f}"
         )
-    avic = bench_avic_step()
-    step = bench_igmm_step()
-    long = bench_igmm_long(n_steps=args.long_steps)
-    print()
-    print(f"{'per-step cost (median)':<58}{'µs':>8}{'target':>10}")
-    print(
-        f"{'AVIC step: IGMM update + GMR predict + Eq. 4a-4c (loop)':<58}"
-        f"{avic['us_per_step_median']:>8.1f}{'≤25':>10}"
+
+
+def paper_cpu(paper_dir: Path) -> dict[str, Any] | None:
+    """Wall and CPU time per experiment of the last ``make reproduce-paper`` into
+    ``paper_dir`` (its ``paper_timing.json``; CPU recorded since issue #20), or None."""
+    try:
+        timing = json.loads((paper_dir / "paper_timing.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(timing, dict):
+        return None
+    return {
+        "paper_dir": str(paper_dir),
+        "wall_s": timing.get("wall_s"),
+        "quick": timing.get("quick"),
+        "sweeps_s": timing.get("sweeps_s", {}),
+        "sweeps_cpu_s": timing.get("sweeps_cpu_s", {}),
+    }
+
+
+def print_paper_cpu(res: dict[str, Any] | None, paper_dir: Path) -> None:
+    """The CPU-minutes table of :func:`paper_cpu`."""
+    if res is None:
+        print(f"\nno {paper_dir / 'paper_timing.json'}: run make reproduce-paper for CPU-minutes")
+        return
+    cpu = res["sweeps_cpu_s"]
+    quick = " (--quick)" if res["quick"] else ""
+    print(f"\nmake reproduce-paper{quick} in {paper_dir}: wall {res['wall_s'] / 60:.1f} min")
+    print(f"{'experiment':<24}{'wall [min]':>11}{'CPU [min]':>11}")
+    for name, wall in sorted(res["sweeps_s"].items(), key=lambda kv: -kv[1]):
+        c = f"{cpu[name] / 60:>11.1f}" if name in cpu else f"{'—':>11}"
+        print(f"{name:<24}{wall / 60:>11.1f}{c}")
+    if cpu:
+        print(f"{'total':<24}{sum(res['sweeps_s'].values()) / 60:>11.1f}"
+              f"{sum(cpu.values()) / 60:>11.1f}")  # fmt: skip
+    else:
+        print("(CPU time not recorded by that run: it predates issue #20)")
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("bench.json"))
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument(
+        "--long-steps", type=int, default=3_600_000,
+        help="steps of the IGMM flat-cost run (issue #3: 3.6 million)",
+    )  # fmt: skip
+    parser.add_argument("--no-loops", action="store_true", help="skip the loop rows")
+    parser.add_argument(
+        "--no-h3", action="store_true", help="skip the whole-experiment H3 row (~4 min)"
     )
+    parser.add_argument(
+        "--no-mpc", action="store_true",
+        help="skip the GP-MPC solve-rate rows (~1 min, + a one-time compile per problem)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--paper-dir", type=Path, default=Path("outputs/paper"),
+        help="the make reproduce-paper output whose paper_timing.json gives CPU-minutes",
+    )  # fmt: skip
+    return parser
+
+
+def loop_rows(repeats: int) -> list[dict[str, Any]]:
+    """Every loop row: the 2D tasks with fixed impedance, porridge with AVIC, and (issue #4)
+    the PyBullet changing-surface task with the full mode-detection stack."""
+    rows = [bench_task(t, repeats) for t in TASKS]
+    rows.append(bench_task("porridge_stirring", repeats, controller="avic"))
+    rows.append(bench_task("changing_surface", repeats, "avic_modes", sim="pybullet3d", fresh=True))
+    return rows
+
+
+def print_torques(res: dict[str, Any]) -> None:
+    """The PyBullet torque-law row of :func:`ccm.bench.dynamics.bench_torques`."""
+    us = res["us_per_call_median"]
     print(
-        f"{'IGMM partial_fit(1 point) + GMR predict (synthetic stream)':<58}"
-        f"{step['us_per_step']:>8.1f}{'':>10}"
+        f"\nPyBullet torque law per physics step ({res['task']}): "
+        + ", ".join(f"sim.dynamics={d} {v:.1f} µs" for d, v in us.items())
     )
-    print(
-        f"IGMM over {long['steps']:,} steps: {long['us_first']:.1f} µs (first "
-        f"{long['window']:,}) -> {long['us_last']:.1f} µs (last {long['window']:,}), "
-        f"ratio {long['ratio']:.2f} (target ≤1.2)"
-    )
-    print(
-        f"  robust: median of the first vs last 10 windows {long['us_first_10_windows']:.1f} -> "
-        f"{long['us_last_10_windows']:.1f} µs, ratio {long['ratio_10_windows']:.2f}"
-    )
-    print(
-        f"  model memory {long['model_bytes_start']} -> {long['model_bytes_end']} B; "
-        f"tracemalloc net per window {long['tracemalloc_net_bytes_early_window']} -> "
-        f"{long['tracemalloc_net_bytes_late_window']} B"
-    )
-    mpc = None if args.no_mpc else bench_mpc()
-    if mpc is not None:
-        print_mpc(mpc)
-    h3 = None if args.no_h3 else bench_h3()
-    if h3 is not None:
-        print_h3(h3)
-    result = {
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``make bench``: every section, printed as it finishes, then ``--out`` as JSON."""
+    from ccm.bench.h3 import bench_h3, print_h3
+    from ccm.bench.igmm import bench_learning, print_learning
+    from ccm.bench.mpc import bench_mpc, print_mpc
+
+    args = _parser().parse_args(argv)
+    result: dict[str, Any] = {
         "benchmark": "ccm make bench",
         "repeats": args.repeats,
         "statistic": "median",
         "machine": {"python": platform.python_version(), "processor": platform.machine()},
-        "rows": rows,
-        "avic_step": avic,
-        "igmm_step": step,
-        "igmm_long": long,
-        "gp_mpc": mpc,
-        "h3_long_horizon": h3,
     }
+    if not args.no_loops:
+        result["rows"] = loop_rows(args.repeats)
+        print_loop_rows(result["rows"])
+        result["pybullet_torques"] = bench_torques()
+        print_torques(result["pybullet_torques"])
+    result["avic_step"] = bench_avic_step()
+    result |= bench_learning(args.long_steps)
+    print_learning(result["avic_step"], result["igmm_step"], result["igmm_long"])
+    result["gp_mpc"] = None if args.no_mpc else bench_mpc()
+    if result["gp_mpc"] is not None:
+        print_mpc(result["gp_mpc"])
+    result["h3_long_horizon"] = None if args.no_h3 else bench_h3()
+    if result["h3_long_horizon"] is not None:
+        print_h3(result["h3_long_horizon"])
+    result["paper"] = paper_cpu(args.paper_dir)
+    print_paper_cpu(result["paper"], args.paper_dir)
     args.out.write_text(json.dumps(result, indent=2, default=str) + "\n", encoding="utf-8")
     print(f"wrote {args.out}")
     return 0

@@ -20,7 +20,7 @@ Modelling choices:
   Panda URDF's are all 0.1 kg m² placeholders; PyBullet's, e.g. 0.0230/0.0178/0.0115 kg m²
   for link 1). With the URDF's tensors M differs from ``calculateMassMatrix`` by ~1 kg m².
   So the links' inertials are passed in (:class:`LinkInertial`, read from PyBullet's
-  ``getDynamicsInfo`` by :func:`ccm.sim.pybullet_robot.link_inertials`) and replace the
+  ``getDynamicsInfo`` by :func:`link_inertials`) and replace the
   URDF's: each joint's body inertia is rebuilt as the sum of its links' (Pinocchio merges
   the links behind fixed joints, here link 8, the hand and the tool, into joint 7's body).
 * **Tool point.** An extra frame on the tool link at ``tip_link`` (the tool point in the
@@ -43,14 +43,18 @@ Modelling choices:
 
 from __future__ import annotations
 
+import shutil
+import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from ccm.sim.pybullet_robot import GRAVITY, N_ARM
+from ccm.sim.pybullet_robot import GRAVITY, N_ARM, robot_urdf
+from ccm.sim.pybullet_scene import ToolSpec
 
 _TOOL_POINT = "ccm_tool_point"  # the name of the added frame
 _ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, N_ARM + 1))
@@ -191,3 +195,28 @@ def _replace_inertias(model: pin.Model, inertials: Mapping[str, LinkInertial]) -
             raise ValueError(f"no inertial given for the moving link {frame.name!r}")
         body = frame.placement.act(inertials[frame.name].to_pinocchio())
         model.inertias[frame.parentJoint] = model.inertias[frame.parentJoint] + body
+
+
+def link_inertials(p: Any, cid: int, robot: int) -> dict[str, LinkInertial]:
+    """The inertials PyBullet simulates each link of ``robot`` with (not the base), by link
+    name: the URDF's mass and centre of mass, principal moments from the collision shape
+    (:mod:`ccm.sim.panda_dynamics` explains why this matters)."""
+    out = {}
+    for j in range(p.getNumJoints(robot, physicsClientId=cid)):
+        name = p.getJointInfo(robot, j, physicsClientId=cid)[12].decode()
+        mass, _, principal, com, orn = p.getDynamicsInfo(robot, j, physicsClientId=cid)[:5]
+        out[name] = LinkInertial(mass, tuple(com), tuple(orn), tuple(principal))
+    return out
+
+
+def robot_dynamics(
+    p: Any, cid: int, robot: int, tool: ToolSpec, tip_link: Sequence[float]
+) -> PandaDynamics:
+    """Pinocchio's model of the loaded ``robot`` (the URDF :func:`robot_urdf` writes for
+    ``tool``, PyBullet's link inertials) with the tool point ``tip_link`` (link frame)."""
+    tmp = tempfile.mkdtemp(prefix="ccm_panda_")
+    try:
+        urdf = robot_urdf(tool, tmp)
+        return PandaDynamics(urdf, "ccm_tool", tip_link, link_inertials(p, cid, robot), GRAVITY)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)

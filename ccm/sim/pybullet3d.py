@@ -52,13 +52,14 @@ described in :mod:`ccm.sim.pybullet_robot`):
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ccm.errors import ConfigError, SimulationDiverged, check_vector
 from ccm.sim.base import Simulator, all_finite
 from ccm.sim.footprint_friction import face_grid, table_friction
+from ccm.sim.panda_dynamics import PandaDynamics, robot_dynamics
 from ccm.sim.pybullet_robot import (
     DOWN,
     GRAVITY,
@@ -71,7 +72,6 @@ from ccm.sim.pybullet_robot import (
     nullspace_projection,
     orientation_error,
     quat_to_matrix,
-    robot_dynamics,
     set_joint_positions,
     start_ik,
     task_inertia,
@@ -96,9 +96,6 @@ from ccm.sim.pybullet_scene import (
 from ccm.sim.sensor import FTSensor
 from ccm.sim.start_pose import check_start_3d
 from ccm.types import Command, Observation, StepInfo
-
-if TYPE_CHECKING:
-    from ccm.sim.panda_dynamics import PandaDynamics
 
 __all__ = [
     "DOWN", "GRAVITY", "N_ARM", "PANDA_READY", "PATCH_MODES", "Box3DSpec", "PyBullet3D",

@@ -64,15 +64,12 @@ import shutil
 import tempfile
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ccm.errors import ConfigError
 from ccm.sim.pybullet_scene import PyBullet3DConfig, ToolSpec
-
-if TYPE_CHECKING:
-    from ccm.sim.panda_dynamics import LinkInertial, PandaDynamics
 
 GRAVITY = 9.81  # m/s^2, along -z
 N_ARM = 7  # Panda arm joints (the only movable joints once the fingers are removed)
@@ -219,35 +216,6 @@ def load_robot(p: Any, cid: int, config: PyBullet3DConfig) -> tuple[int, int]:
     )
     p.enableJointForceTorqueSensor(robot, tool_link, True, physicsClientId=cid)
     return robot, tool_link
-
-
-def link_inertials(p: Any, cid: int, robot: int) -> dict[str, LinkInertial]:
-    """The inertials PyBullet simulates each link of ``robot`` with (not the base), by link
-    name: the URDF's mass and centre of mass, principal moments from the collision shape
-    (:mod:`ccm.sim.panda_dynamics` explains why this matters)."""
-    from ccm.sim.panda_dynamics import LinkInertial
-
-    out = {}
-    for j in range(p.getNumJoints(robot, physicsClientId=cid)):
-        name = p.getJointInfo(robot, j, physicsClientId=cid)[12].decode()
-        mass, _, principal, com, orn = p.getDynamicsInfo(robot, j, physicsClientId=cid)[:5]
-        out[name] = LinkInertial(mass, tuple(com), tuple(orn), tuple(principal))
-    return out
-
-
-def robot_dynamics(
-    p: Any, cid: int, robot: int, tool: ToolSpec, tip_link: Sequence[float]
-) -> PandaDynamics:
-    """Pinocchio's model of the loaded ``robot`` (the URDF :func:`robot_urdf` writes for
-    ``tool``, PyBullet's link inertials) with the tool point ``tip_link`` (link frame)."""
-    from ccm.sim.panda_dynamics import PandaDynamics
-
-    tmp = tempfile.mkdtemp(prefix="ccm_panda_")
-    try:
-        urdf = robot_urdf(tool, tmp)
-        return PandaDynamics(urdf, "ccm_tool", tip_link, link_inertials(p, cid, robot), GRAVITY)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
 
 
 # --------------------------------------------------------------------------- kinematics
