@@ -20,7 +20,7 @@ from ccm.bench.loop import bench_task, paper_cpu, print_paper_cpu
 def test_raw_loop_runs_the_engine_and_moves_time_on(task: str, sim: str | None) -> None:
     comp = components(task, "fixed_impedance", sim)
     try:
-        wall = raw_loop(comp.sim, 50)
+        wall = raw_loop(comp.sim, comp.task.pattern, 50)
         assert wall > 0.0
         obs, _ = comp.sim.step(comp.controller.step(*_first(comp)))
         assert obs.t > 0.0  # the simulator still works after the raw loop
@@ -36,11 +36,13 @@ def _first(comp):  # noqa: ANN001, ANN202
 
 def test_raw_loop_refuses_an_unknown_simulator() -> None:
     class Other:
-        def reset(self, seed: int = 0) -> None:
-            pass
+        control_dt = 0.001
+
+        def reset(self, seed: int = 0) -> tuple:
+            return type("Obs", (), {"t": 0.0})(), None
 
     with pytest.raises(TypeError, match="no raw loop for Other"):
-        raw_loop(Other(), 10)
+        raw_loop(Other(), components("smoke", "fixed_impedance").task.pattern, 10)
 
 
 def test_a_loop_row_has_the_raw_loop_and_the_ratio() -> None:

@@ -78,7 +78,7 @@ def bench_task(
         t0 = time.perf_counter()
         rec = run_trial(comp, seed=r, duration_s=sim_time)
         walls.append(time.perf_counter() - t0)
-        raws.append(raw_loop(comp.sim, len(rec), seed=r))
+        raws.append(raw_loop(comp.sim, comp.task.pattern, len(rec), seed=r))
     comp.sim.close()
     wall = statistics.median(walls)
     steps = len(rec)
