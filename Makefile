@@ -56,7 +56,7 @@ reproduce-paper-quick: setup  ## the same pipeline with seed 0 and short trials 
 	$(BIN)/ccm paper --quick --out $(PAPER_DIR)-quick
 
 bench: setup  ## speed table; also writes bench.json
-	$(BIN)/python -m ccm.bench --out bench.json
+	$(BIN)/python -m ccm.bench --out bench.json --paper-dir $(PAPER_DIR)
 
 clean:
 	rm -rf $(VENV) outputs multirun bench.json .pytest_cache .ruff_cache
