@@ -56,6 +56,7 @@ from ccm.errors import (
     check_positive,
     check_vector,
 )
+from ccm.sim._pymunk_raw import RawBody
 from ccm.sim.base import Simulator
 from ccm.sim.hri_forces import HRIForces
 from ccm.sim.scene import SceneSpec, as_plain
@@ -216,6 +217,7 @@ class Pymunk2D(Simulator):
     def reset(self, seed: int | None = None) -> tuple[Observation, StepInfo]:
         """Rebuild the space, put the EE at ``start`` at rest, seed the sensor noise."""
         self._space, self._body = self._build_space()
+        self._raw = RawBody(self._space, self._body)
         self._state: tuple[float, ...] | None = None
         self._rng = np.random.default_rng(seed)
         self.sensor.reset(self._rng)
@@ -257,7 +259,8 @@ class Pymunk2D(Simulator):
         sfx = sfy = stq = skx = sky = 0.0  # sums of external fx, fy, torque, contact fx, fy
         n_contacts, mu = 0, -1.0
         # the state read at the end of the previous step (nothing else moves the body)
-        x, y, vx, vy = self._state if self._state is not None else (*body.position, *body.velocity)
+        raw = self._raw
+        x, y, vx, vy = self._state if self._state is not None else raw.state()
         hri = self._hri
         if hri is not None:
             hri.start_period()
@@ -269,12 +272,12 @@ class Pymunk2D(Simulator):
                 hx, hy, wx, wy, nw = hri.step(x, y, vx, vy, self._steps * dt)
                 fex += hx
                 fey += hy
-                body.force = (cfx + fex + wx, cfy + fey + wy)
+                raw.set_force(cfx + fex + wx, cfy + fey + wy)
             else:
-                body.force = (cfx + fex, cfy + fey)
+                raw.set_force(cfx + fex, cfy + fey)
             if self._rotates:
                 body.torque = ctq
-            space.step(dt)
+            raw.step(dt)
             if self._has_static:
                 kfx, kfy, ktq, n_contacts, mu = self._read_contacts(body)
             else:  # nothing to touch: skip the arbiter walk (hot path of contact-free scenes)
@@ -291,8 +294,7 @@ class Pymunk2D(Simulator):
             stq += ktq
             skx += kfx
             sky += kfy
-            nx, ny = body.position
-            vx, vy = body.velocity
+            nx, ny, vx, vy = raw.state()
             self._steps += 1
             self._path += math.hypot(nx - x, ny - y)
             x, y = nx, ny
