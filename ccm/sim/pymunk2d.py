@@ -174,6 +174,8 @@ class Pymunk2D(Simulator):
             for s in scene.springs
         ]
         self._scheduled_springs = any(s.scheduled for s in scene.springs)
+        # _attached()'s cache: flags, attached springs, and the step window they hold for
+        self._att: tuple[list[bool], list[tuple[float, ...]], float, float] = ([], [], 1, 0)
         self._comp_fy = scene.ee.mass * scene.gravity if self.config.gravity_compensation else 0.0
         self._has_viscous = bool(scene.viscous)
         self._rotates = scene.ee.rotate
@@ -369,16 +371,27 @@ class Pymunk2D(Simulator):
         return space, body
 
     def _attached(self) -> list[bool]:
-        """Whether each spring is attached at the current physics step."""
+        """Whether each spring is attached at the current physics step (a function of the step
+        alone, recomputed only when the step leaves the window since the last attach/detach)."""
         n = self._steps
-        return [a <= n < d for a, d in self._spring_steps]
+        if not self._att[2] <= n < self._att[3]:
+            on = [a <= n < d for a, d in self._spring_steps]
+            edges = [e for window in self._spring_steps for e in window]
+            self._att = (
+                on,
+                [s for s, o in zip(self._springs, on, strict=True) if o],
+                max((e for e in edges if e <= n), default=-math.inf),
+                min((e for e in edges if e > n), default=math.inf),
+            )
+        return self._att[0]
 
     def _spring_force(self, x: float, y: float) -> tuple[float, float]:
         """Sum of ``-k (|d| - L0) d/|d|`` over the attached springs; zero where ``|d| = 0``."""
         fx = fy = 0.0
         springs = self._springs
         if self._scheduled_springs:
-            springs = [s for s, on in zip(springs, self._attached(), strict=True) if on]
+            self._attached()
+            springs = self._att[1]
         for axp, ayp, k, l0 in springs:
             dx, dy = x - axp, y - ayp
             if l0 == 0.0:
