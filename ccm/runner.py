@@ -302,9 +302,13 @@ def run_trial(
     pattern = comp.controller.prepare(planned, comp.task.contacts, np.random.default_rng(seed))
     dt = comp.sim.control_dt
 
+    memo = [math.nan, 0]  # (pattern duration, steps): recomputed only when P is re-timed
+
     def n_steps() -> int:
-        extra = min(max(pattern.duration - planned.duration, 0.0), max_extension_s)
-        return max(1, int(math.floor((duration_s + extra) / dt + 1e-9)))
+        if pattern.duration != memo[0]:
+            extra = min(max(pattern.duration - planned.duration, 0.0), max_extension_s)
+            memo[:] = [pattern.duration, max(1, int(math.floor((duration_s + extra) / dt + 1e-9)))]
+        return int(memo[1])
 
     if expect is not None:
         expect(n_steps())

@@ -252,7 +252,9 @@ class AVIC(FixedImpedance):
         u_motion, u_force = self.motion_force(obs, target, kp, kd)
         self.forecast.push(s, self.model.predict(s) if self.model.ready else None)
         pred_next = self.forecast.next_prediction()  # D̂_{t+1}, for the command until t+1
-        u = u_motion + u_force
+        u = u_motion  # a fresh array; the force loop (if any) is added in place
+        if u_force is not self._zero:
+            u += u_force
         self.last_feedforward = self._zero  # λ Ŵ of Eq. 4a as applied (Eq. 8 reuses it)
         if self.feedforward and pred_next is not None and lam > 0.0:
             w = self.predicted_wrench(float(pred_next[0]), obs)

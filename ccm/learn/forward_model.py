@@ -170,6 +170,9 @@ class IncrementalForwardModel:
         self._x = np.empty((1, N_STATE + N_EFFECT))
         self._x_in = np.empty((1, N_STATE))
         self._y = np.empty((1, N_EFFECT))
+        # their state / effect halves and those of the scale, as views made once (not per step)
+        self._x_s, self._x_d = self._x[0, :N_STATE], self._x[0, N_STATE:]
+        self._scale_s, self._scale_d = self.scale[:N_STATE], self.scale[N_STATE:]
 
     @property
     def ready(self) -> bool:
@@ -178,18 +181,17 @@ class IncrementalForwardModel:
 
     def update(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
         """Add X_t = [S_{t−1}, D_t] (Eq. 5, one incremental step)."""
-        x, scale = self._x[0], self.scale  # X / scale, as the IGMM sees every point
-        np.divide(s_prev, scale[:N_STATE], out=x[:N_STATE])
-        np.divide(d_now, scale[N_STATE:], out=x[N_STATE:])
+        np.divide(s_prev, self._scale_s, out=self._x_s)  # X / scale, as the IGMM sees it
+        np.divide(d_now, self._scale_d, out=self._x_d)
         self.model.partial_fit_row(self._x)
 
     def predict(self, s_now: np.ndarray) -> np.ndarray:
         """D̂_{t+1} = f_fm(S_t) by GMR (Eq. 6); zeros before the first point."""
         if not self.ready:
             return np.zeros(N_EFFECT)
-        np.divide(s_now, self.scale[:N_STATE], out=self._x_in[0])
+        np.divide(s_now, self._scale_s, out=self._x_in[0])
         self._gmr.predict_into(self._x_in, self._y)
-        return self._y[0] * self.scale[N_STATE:]
+        return self._y[0] * self._scale_d
 
     def end_trial(self) -> None:
         """Nothing to do: the model learns every step."""

@@ -56,6 +56,7 @@ from ccm.errors import (
     check_positive,
     check_vector,
 )
+from ccm.sim._pymunk_raw import RawBody
 from ccm.sim.base import Simulator
 from ccm.sim.hri_forces import HRIForces
 from ccm.sim.scene import SceneSpec, as_plain
@@ -173,6 +174,8 @@ class Pymunk2D(Simulator):
             for s in scene.springs
         ]
         self._scheduled_springs = any(s.scheduled for s in scene.springs)
+        # _attached()'s cache: flags, attached springs, and the step window they hold for
+        self._att: tuple[list[bool], list[tuple[float, ...]], float, float] = ([], [], 1, 0)
         self._comp_fy = scene.ee.mass * scene.gravity if self.config.gravity_compensation else 0.0
         self._has_viscous = bool(scene.viscous)
         self._rotates = scene.ee.rotate
@@ -216,6 +219,7 @@ class Pymunk2D(Simulator):
     def reset(self, seed: int | None = None) -> tuple[Observation, StepInfo]:
         """Rebuild the space, put the EE at ``start`` at rest, seed the sensor noise."""
         self._space, self._body = self._build_space()
+        self._raw = RawBody(self._space, self._body)
         self._state: tuple[float, ...] | None = None
         self._rng = np.random.default_rng(seed)
         self.sensor.reset(self._rng)
@@ -257,7 +261,8 @@ class Pymunk2D(Simulator):
         sfx = sfy = stq = skx = sky = 0.0  # sums of external fx, fy, torque, contact fx, fy
         n_contacts, mu = 0, -1.0
         # the state read at the end of the previous step (nothing else moves the body)
-        x, y, vx, vy = self._state if self._state is not None else (*body.position, *body.velocity)
+        raw = self._raw
+        x, y, vx, vy = self._state if self._state is not None else raw.state()
         hri = self._hri
         if hri is not None:
             hri.start_period()
@@ -269,12 +274,12 @@ class Pymunk2D(Simulator):
                 hx, hy, wx, wy, nw = hri.step(x, y, vx, vy, self._steps * dt)
                 fex += hx
                 fey += hy
-                body.force = (cfx + fex + wx, cfy + fey + wy)
+                raw.set_force(cfx + fex + wx, cfy + fey + wy)
             else:
-                body.force = (cfx + fex, cfy + fey)
+                raw.set_force(cfx + fex, cfy + fey)
             if self._rotates:
                 body.torque = ctq
-            space.step(dt)
+            raw.step(dt)
             if self._has_static:
                 kfx, kfy, ktq, n_contacts, mu = self._read_contacts(body)
             else:  # nothing to touch: skip the arbiter walk (hot path of contact-free scenes)
@@ -291,8 +296,7 @@ class Pymunk2D(Simulator):
             stq += ktq
             skx += kfx
             sky += kfy
-            nx, ny = body.position
-            vx, vy = body.velocity
+            nx, ny, vx, vy = raw.state()
             self._steps += 1
             self._path += math.hypot(nx - x, ny - y)
             x, y = nx, ny
@@ -367,16 +371,27 @@ class Pymunk2D(Simulator):
         return space, body
 
     def _attached(self) -> list[bool]:
-        """Whether each spring is attached at the current physics step."""
+        """Whether each spring is attached at the current physics step (a function of the step
+        alone, recomputed only when the step leaves the window since the last attach/detach)."""
         n = self._steps
-        return [a <= n < d for a, d in self._spring_steps]
+        if not self._att[2] <= n < self._att[3]:
+            on = [a <= n < d for a, d in self._spring_steps]
+            edges = [e for window in self._spring_steps for e in window]
+            self._att = (
+                on,
+                [s for s, o in zip(self._springs, on, strict=True) if o],
+                max((e for e in edges if e <= n), default=-math.inf),
+                min((e for e in edges if e > n), default=math.inf),
+            )
+        return self._att[0]
 
     def _spring_force(self, x: float, y: float) -> tuple[float, float]:
         """Sum of ``-k (|d| - L0) d/|d|`` over the attached springs; zero where ``|d| = 0``."""
         fx = fy = 0.0
         springs = self._springs
         if self._scheduled_springs:
-            springs = [s for s, on in zip(springs, self._attached(), strict=True) if on]
+            self._attached()
+            springs = self._att[1]
         for axp, ayp, k, l0 in springs:
             dx, dy = x - axp, y - ayp
             if l0 == 0.0:

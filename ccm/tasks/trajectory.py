@@ -36,6 +36,7 @@ from ccm.errors import (
     check_positive,
     check_vector,
 )
+from ccm.tasks._trajectory_kernels import arc_eval
 from ccm.types import TargetSample
 
 __all__ = [
@@ -321,6 +322,10 @@ class ArcSegment(Segment):
             [0.0, -thdd * si - thd2 * c, thdd * c - thd2 * si],
         ]
 
+    def _eval(self, t_local: float) -> np.ndarray:
+        # compiled C(t) @ B, bit-for-bit the readable version (Segment._eval with _coeffs)
+        return arc_eval(t_local, self.duration, self.sweep, self._basis)
+
     def _coeffs_many(self, t_local: np.ndarray) -> np.ndarray:
         s, sd, sdd = min_jerk(t_local / self.duration, self.duration)
         th, thd, thdd = self.sweep * s, self.sweep * sd, self.sweep * sdd
@@ -457,7 +462,7 @@ class MotionPattern:
         else:
             raise ValueError(f"MotionPattern.sample: t must be a number, got {t!r}")
         seg = self.segments[i]
-        out = np.array(seg._coeffs(t_eval - self._starts[i])) @ seg._basis
+        out = seg._eval(t_eval - self._starts[i])
         return TargetSample(
             t, out[0], out[1], out[2], self.orientation, seg.force_dir, seg.force_mag, i, False
         )
