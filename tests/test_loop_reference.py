@@ -1,5 +1,6 @@
 """Same results from the fast closed loop (issue #20): summary metrics of fast-mode runs
-(smoke; AVIC on porridge stirring; AVIC + modes on the 2D changing surface) equal the pins in
+(smoke; AVIC on porridge stirring; AVIC + modes on the 2D changing surface; PyBullet table_wall
+and h4_collisions with contact) equal the pins in
 ``tests/data/loop_reference.json``, recorded before the loop was sped up.
 
 Speed work (compiled kernels, buffers, fewer allocations) must not change a result beyond
