@@ -74,10 +74,10 @@ def test_reused_data_give_the_identical_summary(first: Path) -> None:
     assert not (first / "b" / "data").exists()  # h3.save_data defaults to false
 
 
-def test_data_from_a_run_without_saved_data_is_one_line(first: Path) -> None:
-    if not (first / "b").is_dir():
-        pytest.skip("needs the run of test_reused_data_give_the_identical_summary")
-    res = run(first, "c", f"h3.data_from={first / 'b'}")
+def test_data_from_a_run_without_saved_data_is_one_line(tmp_path: Path) -> None:
+    unsaved = tmp_path / "unsaved"  # a run directory without data/ (h3.save_data: false)
+    unsaved.mkdir()
+    res = run(tmp_path, "c", f"h3.data_from={unsaved}")
     assert res.returncode != 0
     line = res.stderr.strip().splitlines()[-1]
     assert "h3.data_from" in line and "h3.save_data=true" in line and "Traceback" not in res.stderr
