@@ -173,3 +173,37 @@ def test_the_torque_bench_times_both_paths() -> None:
     row = bench_torques(calls=5, repeats=2)
     assert set(row["us_per_call_median"]) == {"pinocchio", "pybullet"}
     assert all(len(v) == 2 and min(v) > 0.0 for v in row["us_per_call_all"].values())
+
+
+def test_compiled_torque_law_matches_the_numpy_law(robot: Robot) -> None:
+    """:func:`ccm.sim._pybullet_kernels.torque_law` on :meth:`PandaDynamics.torque_terms`
+    against the torque law written in numpy on :meth:`PandaDynamics.compute`'s terms (the
+    form ``PyBullet3D._torques_pybullet`` uses): ``τ = Jᵀ [f; m + m_hold] + h − Jᵀ Λ J̇ q̇ +
+    N τ₀``, with a random wrench, orientation hold and posture term at every sample.
+
+    Tolerance: relative 1e-9 of max |τ|. The two compute Λ by different Cholesky codes (plain
+    loops vs LAPACK), so they differ by rounding times cond(J M⁻¹ Jᵀ) (up to ~7e5 here).
+    """
+    from ccm.sim._pybullet_kernels import orientation_error, torque_law
+
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    for q, dq in samples(robot.dyn):
+        minv, jac, jdq, h = robot.dyn.torque_terms(q, dq)
+        t = robot.dyn.compute(q, dq)
+        assert np.allclose(minv, np.linalg.inv(t.mass), rtol=1e-9, atol=1e-9)
+        wrench, q_rest = rng.normal(0.0, 10.0, 6), q + rng.normal(0.0, 0.1, 7)
+        q_des, orn = rng.normal(size=4), rng.normal(size=4)
+        q_des, orn = q_des / np.linalg.norm(q_des), orn / np.linalg.norm(orn)
+        omega, (ko, do, kn, dn) = rng.normal(size=3), rng.uniform(1.0, 50.0, 4)
+        hold = np.concatenate([[ko, do], q_des, orn, omega])
+        posture = np.concatenate([[kn, dn], q_rest, q, dq])
+        tau = torque_law(minv, jac, jdq, h, wrench, hold, posture, True)
+        w = wrench.copy()
+        w[3:] += ko * orientation_error(q_des, orn) - do * omega
+        tau0 = kn * (q_rest - q) - dn * dq
+        ref = t.jacobian.T @ w + t.h - t.jacobian.T @ (t.lam @ t.jdot_qdot)
+        ref += tau0 - t.jacobian.T @ (t.lam @ (t.minv_jt.T @ tau0))
+        worst = max(worst, float(np.abs(tau - ref).max() / np.abs(ref).max()))
+    print(f"\n[pinocchio] compiled vs numpy torque law, max relative error {worst:.2g}")
+    assert worst < 1e-9

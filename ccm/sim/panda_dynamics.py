@@ -175,6 +175,19 @@ class PandaDynamics:
             lam=self._task_inertia(jac @ minv_jt),
         )
 
+    def torque_terms(
+        self, q: np.ndarray, dq: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(M⁻¹, J, J̇ q̇, h)`` at ``(q, q̇)``: what the compiled torque law
+        (:func:`ccm.sim._pybullet_kernels.torque_law`) needs, with no copies or Python-side
+        algebra (the per-step path; :meth:`compute` gives every term)."""
+        model, data, frame = self.model, self._data, self._frame
+        pin.computeAllTerms(model, data, q, dq)
+        jac = pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)
+        acc = pin.getFrameClassicalAcceleration(model, data, frame, pin.LOCAL_WORLD_ALIGNED)
+        pin.cholesky.decompose(model, data)
+        return pin.cholesky.computeMinv(model, data), jac, acc.vector, data.nle
+
     def _task_inertia(self, mobility: np.ndarray) -> np.ndarray:
         """Λ = (J M⁻¹ Jᵀ)⁻¹ by Cholesky; the pseudo-inverse if that is not positive definite."""
         chol, info = lapack.dpotrf(mobility)

@@ -57,6 +57,7 @@ from typing import Any
 import numpy as np
 
 from ccm.errors import ConfigError, SimulationDiverged, check_vector
+from ccm.sim._pybullet_kernels import tool_sense, torque_law
 from ccm.sim.base import Simulator, all_finite
 from ccm.sim.footprint_friction import face_grid, table_friction
 from ccm.sim.panda_dynamics import PandaDynamics, robot_dynamics
@@ -66,19 +67,15 @@ from ccm.sim.pybullet_robot import (
     N_ARM,
     box_inertia,
     contact_wrench,
-    ft_external,
     inverse_dynamics,
     load_robot,
     nullspace_projection,
     orientation_error,
-    quat_to_matrix,
     set_joint_positions,
     start_ik,
     task_inertia,
     tool_jacobian,
-    tool_momentum_rate,
     tool_point_in_link,
-    tool_point_state,
 )
 from ccm.sim.pybullet_scene import (
     PANDA_READY,
@@ -147,9 +144,10 @@ class PyBullet3D(Simulator):
         self._tip_link = (0.0, 0.0, tool.size[2])
         #: Pinocchio's model of the arm (``sim.dynamics: pinocchio``), built on the first reset
         self._dynamics: PandaDynamics | None = None
-        self._weight = np.array([0.0, 0.0, -tool.mass * GRAVITY])
+        self._tip_local_arr = np.array(self._tip_local)
         self._tool_inertia = np.diag(box_inertia(tool.mass, tool.size))  # tool frame [kg m²]
-        self._twist_prev: tuple[np.ndarray, np.ndarray] | None = None
+        #: the tool's centre-of-mass twist at the previous physics step (NaN: none yet)
+        self._twist_prev = np.full(6, np.nan)
         self._client: int | None = None
         self._p: Any = None
         self._robot = -1
@@ -217,7 +215,7 @@ class PyBullet3D(Simulator):
         if self.config.dynamics == "pinocchio" and self._dynamics is None:  # once: same robot
             self._dynamics = robot_dynamics(p, cid, self._robot, self.config.tool, self._tip_link)
         self._place_at_start()
-        self._twist_prev = None
+        self._twist_prev = np.full(6, np.nan)
         self._refresh_tip()
         self._rng = np.random.default_rng(seed)
         self.sensor.reset(self._rng)
@@ -231,7 +229,7 @@ class PyBullet3D(Simulator):
         p.stepSimulation(physicsClientId=cid)
         self._refresh_tip()
         self._steps = 0
-        f, m = self._ft_external()
+        f, m = self._ft
         kf, km, n, mu, split = self._contacts()
         return self._output(f, m, kf, km, n, mu, split)
 
@@ -267,7 +265,7 @@ class PyBullet3D(Simulator):
             p.stepSimulation(physicsClientId=cid)
             self._refresh_tip()
             self._steps += 1
-            f, m = self._ft_external()
+            f, m = self._ft
             kf, km, n, mu, split = self._contacts()
             parts = [f, m, kf, km, split]
             total = parts if total is None else [a + b for a, b in zip(total, parts, strict=True)]
@@ -395,7 +393,13 @@ class PyBullet3D(Simulator):
             self.start_position, self.start_orientation,
         )  # fmt: skip
         set_joint_positions(p, cid, self._robot, q)
-        self._q_rest = q.copy()
+        cfg, zeros = self.config, np.zeros(2 * N_ARM)
+        # the torque law's gains and set points (:func:`torque_law`), the current state
+        # filled in every physics step
+        gains = [cfg.orientation_stiffness, cfg.orientation_damping]
+        self._hold = np.concatenate([gains, self.start_orientation, zeros[:7]])
+        self._posture = np.concatenate([[cfg.nullspace_stiffness, cfg.nullspace_damping], q, zeros])
+        self._q_rest = self._posture[2 : 2 + N_ARM]  # a view: the posture target
 
     # ------------------------------------------------------------------ state and control
 
@@ -411,19 +415,23 @@ class PyBullet3D(Simulator):
         return q, dq
 
     def _refresh_tip(self) -> None:
-        """Read the tool point state once per physics step into ``self._tip``: position,
-        orientation (x, y, z, w), linear and angular velocity. Every use within the step
-        (patch friction, orientation hold, truth, observation) shares it."""
-        *tip, v_com = tool_point_state(
-            self._p, self._client, self._robot, self._tool_link, self._tip_local, True
-        )
-        self._tip = tuple(tip)
-        self._rot = quat_to_matrix(tip[1])
-        twist = (v_com, tip[3])
-        self._inertial = tool_momentum_rate(
-            self.config.tool.mass, self._tool_inertia, self._rot, twist, self._twist_prev, self.dt
-        )
-        self._twist_prev = twist
+        """Read the tool once per physics step: ``self._tip`` = the tool point's position,
+        orientation (x, y, z, w), linear and angular velocity, shared by every use within the
+        step (patch friction, orientation hold, truth, observation), and ``self._ft`` = the
+        external force and moment at the tool point from the tool joint's F/T reading
+        (Newton–Euler balance of the tool, :func:`ccm.sim._pybullet_kernels.tool_sense`)."""
+        p, cid, robot, link = self._p, self._client, self._robot, self._tool_link
+        ls = p.getLinkState(robot, link, 1, 1, physicsClientId=cid)
+        reading = p.getJointState(robot, link, physicsClientId=cid)[2]
+        state = np.array(ls[0] + ls[1] + ls[6] + ls[7])
+        tip, self._rot, wrench = tool_sense(
+            state, np.array(reading), self._tip_local_arr, self._twist_prev,
+            self.config.tool.mass, self._tool_inertia, GRAVITY, self.dt,
+        )  # fmt: skip
+        self._tip = (tip[:3], ls[1], tip[3:6], tip[6:])
+        self._orn = state[3:7]
+        self._twist_prev = state[7:]
+        self._ft = (wrench[:3], wrench[3:])
 
     def _jacobian(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         return tool_jacobian(
@@ -431,13 +439,27 @@ class PyBullet3D(Simulator):
         )
 
     def _torques(self, wrench: np.ndarray) -> np.ndarray:
-        """τ = Jᵀ W + h(q, q̇) − Jᵀ Λ J̇ q̇ + N τ₀ (module docstring)."""
+        """τ = Jᵀ W + h(q, q̇) − Jᵀ Λ J̇ q̇ + N τ₀ (module docstring): compiled on Pinocchio's
+        terms (``sim.dynamics: pinocchio``), else :meth:`_torques_pybullet`."""
         cfg = self.config
         q, dq = self._joint_state()
         if not all_finite(q, dq):
             raise SimulationDiverged(
                 f"non-finite joint state at t={self._steps * self.dt:.3f} s: q={q.tolist()}"
             )
+        if self._dynamics is None:
+            return self._torques_pybullet(wrench, q, dq)
+        minv, jac, jdq, h = self._dynamics.torque_terms(q, dq)
+        self._hold[6:10] = self._orn
+        self._hold[10:] = self._tip[3]
+        self._posture[2 + 7 :] = np.concatenate([q, dq])
+        return torque_law(
+            minv, jac, jdq, h, wrench, self._hold, self._posture, cfg.task_coriolis_compensation
+        )
+
+    def _torques_pybullet(self, wrench: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """The torque law in numpy on PyBullet's queries (``sim.dynamics: pybullet``)."""
+        cfg = self.config
         use_null = cfg.nullspace_stiffness > 0.0 or cfg.nullspace_damping > 0.0
         jac, h, jdq, minv_jt, lam = self._model_terms(
             q, dq, use_null or cfg.task_coriolis_compensation
@@ -477,13 +499,6 @@ class PyBullet3D(Simulator):
         return jac, h, jdq, minv_jt, lam
 
     # ------------------------------------------------------------------ sensing
-
-    def _ft_external(self) -> tuple[np.ndarray, np.ndarray]:
-        """External wrench on the tool at the tool point from the joint F/T sensor."""
-        return ft_external(
-            self._p, self._client, self._robot, self._tool_link, self._rot, self._tip_local,
-            self._weight, *self._inertial,
-        )  # fmt: skip
 
     def _contacts(self) -> tuple[np.ndarray, np.ndarray, int, float, np.ndarray]:
         """Ground-truth contact force/torque (about the tool point), count, friction and

@@ -58,7 +58,6 @@ Modelling choices (the torque loop and the table patches are described in
 
 from __future__ import annotations
 
-import math
 import os
 import shutil
 import tempfile
@@ -69,6 +68,7 @@ from typing import Any
 import numpy as np
 
 from ccm.errors import ConfigError
+from ccm.sim import _pybullet_kernels as _k
 from ccm.sim.pybullet_scene import PyBullet3DConfig, ToolSpec
 
 GRAVITY = 9.81  # m/s^2, along -z
@@ -82,47 +82,16 @@ _TOOL_MOUNT_Z = 0.0584  # m, where the fingers attach in panda_hand's frame (pan
 
 
 def _quat_rotate(q: Sequence[float], v: Sequence[float]) -> tuple[float, float, float]:
-    """Rotate ``v`` by the unit quaternion ``q`` (x, y, z, w)."""
-    x, y, z, w = q
-    vx, vy, vz = v
-    # t = 2 q_vec × v ; v' = v + w t + q_vec × t
-    tx = 2.0 * (y * vz - z * vy)
-    ty = 2.0 * (z * vx - x * vz)
-    tz = 2.0 * (x * vy - y * vx)
-    return (
-        vx + w * tx + (y * tz - z * ty),
-        vy + w * ty + (z * tx - x * tz),
-        vz + w * tz + (x * ty - y * tx),
-    )
-
-
-def quat_to_matrix(q: Sequence[float]) -> np.ndarray:
-    x, y, z, w = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """Rotate ``v`` by the unit quaternion ``q`` (x, y, z, w)
+    (:func:`ccm.sim._pybullet_kernels.quat_rotate`)."""
+    x, y, z = _k.quat_rotate(np.asarray(q, dtype=float), np.asarray(v, dtype=float)).tolist()
+    return x, y, z
 
 
 def orientation_error(q_des: Sequence[float], q: Sequence[float]) -> np.ndarray:
-    """Rotation vector [rad] (world frame) that takes orientation ``q`` to ``q_des``."""
-    x1, y1, z1, w1 = q_des
-    x2, y2, z2, w2 = -q[0], -q[1], -q[2], q[3]  # conjugate of q
-    # e = q_des ⊗ q⁻¹
-    ex = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
-    ey = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
-    ez = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
-    ew = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
-    if ew < 0.0:  # shortest way round
-        ex, ey, ez, ew = -ex, -ey, -ez, -ew
-    s = math.sqrt(ex * ex + ey * ey + ez * ez)
-    if s < 1e-12:
-        return np.array([2.0 * ex, 2.0 * ey, 2.0 * ez])
-    angle = 2.0 * math.atan2(s, ew)
-    return np.array([ex, ey, ez]) * (angle / s)
+    """Rotation vector [rad] (world frame) that takes orientation ``q`` to ``q_des``
+    (:func:`ccm.sim._pybullet_kernels.orientation_error`)."""
+    return _k.orientation_error(np.asarray(q_des, dtype=float), np.asarray(q, dtype=float))
 
 
 # --------------------------------------------------------------------------- robot
@@ -390,55 +359,6 @@ def box_inertia(mass: float, size: Sequence[float]) -> tuple[float, float, float
     return (mass * (sy**2 + sz**2) / 12, mass * (sx**2 + sz**2) / 12, mass * (sx**2 + sy**2) / 12)
 
 
-def tool_momentum_rate(
-    mass: float,
-    inertia_body: np.ndarray,
-    rot: np.ndarray,
-    twist: tuple[np.ndarray, np.ndarray],
-    twist_prev: tuple[np.ndarray, np.ndarray] | None,
-    dt: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(m a_c, I α + ω × I ω)`` of the tool in the world frame (Newton–Euler), with a_c and α
-    backward differences of its centre-of-mass twist ``(v_c, ω)`` over ``dt``; zero when
-    there is no previous twist (the arm was just placed at rest)."""
-    v, omega = twist
-    if twist_prev is None:
-        acc = alpha = np.zeros(3)
-    else:
-        acc = (v - twist_prev[0]) / dt
-        alpha = (omega - twist_prev[1]) / dt
-    inertia = rot @ inertia_body @ rot.T
-    return mass * acc, inertia @ alpha + cross3(omega, inertia @ omega)
-
-
-def ft_external(
-    p: Any,
-    cid: int,
-    robot: int,
-    tool_link: int,
-    rot: np.ndarray,
-    tip_local: Sequence[float],
-    weight: np.ndarray,
-    inertial_force: np.ndarray,
-    inertial_moment: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """External wrench on the tool at the tool point from the joint F/T sensor (module
-    docstring): ``rot`` is the tool's orientation matrix, ``weight`` its weight ``m_tool g`` [N],
-    ``inertial_force`` ``m_tool a_c`` [N] and ``inertial_moment`` ``I α + ω × I ω`` [N m],
-    all in the world frame."""
-    reading = p.getJointState(robot, tool_link, physicsClientId=cid)[2]
-    # force exerted by the hand on the tool and its moment about the tool's centre of mass
-    # (Bullet's link frame is the inertial frame), rotated to the world frame
-    f_joint = rot @ np.asarray(reading[:3])
-    m_joint = rot @ np.asarray(reading[3:])
-    f_ext = inertial_force - f_joint - weight
-    # balance about the centre of mass (the weight has no moment there), then move the
-    # moment to the tool point p: M_p = M_c + (c - p) x F = M_c - r x F
-    r = rot @ np.asarray(tip_local)
-    m_ext = inertial_moment - m_joint - cross3(r, f_ext)
-    return f_ext, m_ext
-
-
 def contact_wrench(
     pts: Sequence[Sequence[Any]], tip: np.ndarray, body_friction: Mapping[int, float]
 ) -> tuple[np.ndarray, np.ndarray, int, float]:
@@ -466,10 +386,3 @@ def contact_wrench(
         if fn > best:
             best, mu = fn, body_friction.get(c[2], -1.0)
     return np.array([fx, fy, fz]), np.array([mx, my, mz]), len(pts), mu
-
-
-def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a × b`` of two 3-vectors; np.cross costs ~50 µs a call (numpy 2)."""
-    a0, a1, a2 = a.tolist()
-    b0, b1, b2 = b.tolist()
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
