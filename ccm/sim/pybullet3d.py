@@ -66,7 +66,7 @@ from ccm.sim.pybullet_robot import (
     GRAVITY,
     N_ARM,
     box_inertia,
-    contact_wrench,
+    contact_truth,
     inverse_dynamics,
     load_robot,
     nullspace_projection,
@@ -87,8 +87,6 @@ from ccm.sim.pybullet_scene import (
     TableSpec,
     ToolSpec,
     boxed_table_parts,
-    contact_normal_force,
-    contact_split,
 )
 from ccm.sim.sensor import FTSensor
 from ccm.sim.start_pose import check_start_3d
@@ -254,9 +252,8 @@ class PyBullet3D(Simulator):
                 f"torque={np.asarray(t_cmd).tolist()} at t={self._steps * self.dt:.3f} s"
             )
         p, cid = self._p, self._client
-        total: list[np.ndarray] | None = None  # sums of f, m, kf, km, split over the period
-        n, mu = 0, -1.0
-        for _ in range(self.control_decimation):
+        total: list[np.ndarray] = []  # sums of f, m, kf, km, split over the period
+        for k in range(self.control_decimation):
             self._update_patch_friction()
             tau = self._torques(wrench)
             p.setJointMotorControlArray(
@@ -265,11 +262,9 @@ class PyBullet3D(Simulator):
             p.stepSimulation(physicsClientId=cid)
             self._refresh_tip()
             self._steps += 1
-            f, m = self._ft
             kf, km, n, mu, split = self._contacts()
-            parts = [f, m, kf, km, split]
-            total = parts if total is None else [a + b for a, b in zip(total, parts, strict=True)]
-        assert total is not None
+            parts = [*self._ft, kf, km, split]
+            total = parts if k == 0 else [a + b for a, b in zip(total, parts, strict=True)]
         if self.control_decimation > 1:
             total = [a / self.control_decimation for a in total]
         f, m, kf, km, split = total
@@ -503,15 +498,14 @@ class PyBullet3D(Simulator):
     def _contacts(self) -> tuple[np.ndarray, np.ndarray, int, float, np.ndarray]:
         """Ground-truth contact force/torque (about the tool point), count, friction and
         ``(table normal, box normal, box friction, normal force x, y, z)`` [N]
-        (:func:`contact_split`, :func:`contact_normal_force`)."""
+        (:func:`ccm.sim.pybullet_robot.contact_truth`)."""
         p, cid = self._p, self._client
         pts = p.getContactPoints(bodyA=self._robot, linkIndexA=self._tool_link, physicsClientId=cid)
         self._table_contacts = [(c[6], c[9]) for c in pts if c[2] == self._table_body]
         if not pts:
             return np.zeros(3), np.zeros(3), 0, -1.0, np.zeros(6)
         tip = self._tip[0]
-        split = np.array(contact_split(pts, self._box_bodies) + contact_normal_force(pts))
-        return (*contact_wrench(pts, tip, self._body_friction), split)
+        return contact_truth(pts, tip, self._box_bodies, self._body_friction)
 
     def _output(
         self,
@@ -525,7 +519,7 @@ class PyBullet3D(Simulator):
     ) -> tuple[Observation, StepInfo]:
         """Observation (F/T path + sensor noise) and truth (contact forces; the same
         ``extra`` keys at every step, as the recorder fixes its columns at the first)."""
-        pos, orn, lin, ang = self._tip
+        pos, _, lin, ang = self._tip
         if not all_finite(pos, lin):
             raise SimulationDiverged(
                 f"non-finite tool state at t={self._steps * self.dt:.3f} s "
@@ -535,7 +529,7 @@ class PyBullet3D(Simulator):
         obs = Observation(
             t=self._steps * self.dt,
             position=pos,
-            orientation=np.array(orn, dtype=float),
+            orientation=self._orn,  # a fresh array every physics step
             lin_vel=lin,
             ang_vel=ang,
             force=f_meas,

@@ -58,11 +58,12 @@ Modelling choices (the torque loop and the table patches are described in
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping, Sequence
+from collections.abc import Container, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -359,30 +360,53 @@ def box_inertia(mass: float, size: Sequence[float]) -> tuple[float, float, float
     return (mass * (sy**2 + sz**2) / 12, mass * (sx**2 + sz**2) / 12, mass * (sx**2 + sy**2) / 12)
 
 
-def contact_wrench(
-    pts: Sequence[Sequence[Any]], tip: np.ndarray, body_friction: Mapping[int, float]
-) -> tuple[np.ndarray, np.ndarray, int, float]:
-    """Ground-truth contact force/torque (about ``tip``), count and surface friction.
+def contact_truth(
+    pts: Sequence[Sequence[Any]],
+    tip: np.ndarray,
+    box_bodies: Container[int],
+    body_friction: Mapping[int, float],
+) -> tuple[np.ndarray, np.ndarray, int, float, np.ndarray]:
+    """Contact ground truth in one pass over the tool's contact points (module docstring).
 
     Args:
-        pts: ``getContactPoints`` of the tool link (body A), non-empty.
+        pts: ``getContactPoints`` of the tool link (body A), non-empty: the other body's id
+            is entry 2, the position on A entry 5, the normal on B entry 7 (pointing from the
+            other body to the tool), the normal force entry 9, the two lateral friction
+            forces entries 10/12 along the directions 11/13.
         tip: the tool point [m].
+        box_bodies: body ids of ``scene.boxes`` (walls, obstacles); every other static body
+            belongs to the table (patch boxes included).
         body_friction: friction of each static body by body id.
+
+    Returns:
+        ``(force, moment about tip, count, friction of the body with the largest normal
+        force, split)``, ``split`` = (table normal, box normal, |box friction force|, the
+        normal part of the contact force x, y, z) [N]. PyBullet's lateral friction entries
+        act on body B along the listed directions, so the tool gets the opposite (checked
+        against the F/T reading). The normal part (friction left out) is the H4 onset truth
+        (:mod:`ccm.contact_metrics`).
     """
     fx = fy = fz = mx = my = mz = 0.0
+    table_n = box_n = bx = by = bz = nx = ny = nz = 0.0
     tx, ty, tz = float(tip[0]), float(tip[1]), float(tip[2])
     best, mu = -1.0, -1.0
     for c in pts:  # plain floats: a handful of points, numpy's per-call cost would dominate
         fn, l1, l2 = c[9], c[10], c[12]
         nrm, d1, d2 = c[7], c[11], c[13]
-        # PyBullet's lateral friction entries act on body B along the listed directions,
-        # so the tool (body A) gets the opposite (checked against the F/T reading)
+        lx, ly, lz = l1 * d1[0] + l2 * d2[0], l1 * d1[1] + l2 * d2[1], l1 * d1[2] + l2 * d2[2]
         cx = fn * nrm[0] - l1 * d1[0] - l2 * d2[0]
         cy = fn * nrm[1] - l1 * d1[1] - l2 * d2[1]
         cz = fn * nrm[2] - l1 * d1[2] - l2 * d2[2]
         rx, ry, rz = c[5][0] - tx, c[5][1] - ty, c[5][2] - tz
         fx, fy, fz = fx + cx, fy + cy, fz + cz
         mx, my, mz = mx + ry * cz - rz * cy, my + rz * cx - rx * cz, mz + rx * cy - ry * cx
+        nx, ny, nz = nx + fn * nrm[0], ny + fn * nrm[1], nz + fn * nrm[2]
+        if c[2] in box_bodies:
+            box_n += fn
+            bx, by, bz = bx - lx, by - ly, bz - lz
+        else:
+            table_n += fn
         if fn > best:
             best, mu = fn, body_friction.get(c[2], -1.0)
-    return np.array([fx, fy, fz]), np.array([mx, my, mz]), len(pts), mu
+    split = np.array([table_n, box_n, math.sqrt(bx * bx + by * by + bz * bz), nx, ny, nz])
+    return np.array([fx, fy, fz]), np.array([mx, my, mz]), len(pts), mu, split

@@ -11,7 +11,7 @@ the ``boxes`` patch mode and the split of the contact ground truth into table an
 from __future__ import annotations
 
 import math
-from collections.abc import Container, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -387,46 +387,3 @@ def boxed_table_parts(
     for pt in table.patches:
         parts.append((*cell(*pt.bounds()), pt.friction, True))
     return parts
-
-
-def contact_split(
-    pts: Sequence[Sequence[Any]], box_bodies: Container[int]
-) -> tuple[float, float, float]:
-    """Contact ground truth by kind of body: ``(table normal, box normal, box friction)`` [N].
-
-    Args:
-        pts: PyBullet ``getContactPoints`` entries of the tool (body A): the other body's id
-            is entry 2, the normal force entry 9, the two lateral friction forces entries
-            10/12 along the directions 11/13 (acting on body B, so the tool gets minus them).
-        box_bodies: body ids of ``scene.boxes`` (walls, obstacles); every other static body
-            belongs to the table (patch boxes included).
-
-    Returns:
-        Normal forces summed over points, and the magnitude of the summed friction force
-        the boxes exert on the tool.
-    """
-    table_n = box_n = fx = fy = fz = 0.0
-    for c in pts:
-        if c[2] in box_bodies:
-            box_n += c[9]
-            (ax, ay, az), (bx, by, bz) = c[11], c[13]
-            fx -= c[10] * ax + c[12] * bx
-            fy -= c[10] * ay + c[12] * by
-            fz -= c[10] * az + c[12] * bz
-        else:
-            table_n += c[9]
-    return table_n, box_n, math.sqrt(fx * fx + fy * fy + fz * fz)
-
-
-def contact_normal_force(pts: Sequence[Sequence[Any]]) -> tuple[float, float, float]:
-    """The normal part of the contact force on the tool, summed over points [N] (friction
-    left out): entry 9 (normal force) times entry 7 (the contact normal on body B, pointing
-    from the surface to the tool). Ground truth for the H4 onset of a contact (the first
-    push of a surface facing the contact's normal, :mod:`ccm.contact_metrics`)."""
-    fx = fy = fz = 0.0
-    for c in pts:
-        nx, ny, nz = c[7]
-        fx += c[9] * nx
-        fy += c[9] * ny
-        fz += c[9] * nz
-    return fx, fy, fz
