@@ -204,26 +204,23 @@ class ModalAVIC(AVIC):
         if n is None:
             self._lp = None
             return False, None, 0.0
-        f, v = obs.force, obs.lin_vel
-        fn = float(f @ n)
+        f, v, nl = obs.force.tolist(), obs.lin_vel.tolist(), n.tolist()  # plain floats: 2-3 entries
+        fn = _dot(f, nl)
         r = -fn  # the surface pushes back against the commanded force direction
         if r < self.min_normal_force:
             self._lp = None
             return False, None, 0.0
         # Eq. 7 uses the friction force: the measured force in the plane normal to n
-        raw = (
-            math.sqrt(max(float(f @ f) - fn * fn, 0.0)),
-            math.sqrt(float(obs.torque @ obs.torque)),
-            r,
-        )
+        tq = obs.torque.tolist()
+        raw = (math.sqrt(max(_dot(f, f) - fn * fn, 0.0)), math.sqrt(_dot(tq, tq)), r)
         if self._lp is None or self._alpha >= 1.0:
             self._lp = raw
         else:
             a = self._alpha
             self._lp = tuple(y + a * (x - y) for x, y in zip(raw, self._lp, strict=True))
         f_t, tau, r = self._lp
-        vn = float(v @ n)
-        if float(v @ v) - vn * vn < self.sliding_speed**2:  # |v_t|² = |v|² − (v·n)²
+        vn = _dot(v, nl)
+        if _dot(v, v) - vn * vn < self.sliding_speed**2:  # |v_t|² = |v|² − (v·n)²
             return True, None, f_t
         return True, feature_vector(f_t, tau, r, self.feature), f_t
 
@@ -358,3 +355,8 @@ class ModalAVIC(AVIC):
             raise state_error(exc) from None
         self.classifier, self.models, self.samples = classifier, models, samples
         self._switch(FREE)
+
+
+def _dot(a: list[float], b: list[float]) -> float:
+    """``a · b`` of two short lists of floats."""
+    return sum(x * y for x, y in zip(a, b, strict=True))
