@@ -34,6 +34,10 @@ RUNS: dict[str, list[str]] = {
     ],
     "h4_collisions_3d": ["experiment=h4_collisions", "experiment.fast=true",
                          "experiment.fast_time_s=3"],
+    # the footprint friction of the table patches (sim.patch_mode=footprint) while the tool
+    # slides from patch A onto B, with collision anticipation (pinned before its kernel)
+    "h4_impactless_3d": ["experiment=h4_impactless", "experiment.fast=true",
+                         "experiment.fast_time_s=5"],
 }  # fmt: skip
 
 
