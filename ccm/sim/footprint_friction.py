@@ -47,19 +47,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ccm.sim._footprint_kernels import cell_weights_and_friction, friction_at
+
 #: a patch as ``(x0, x1, y0, y1, friction)`` [m, m, m, m, -]
 Patch = tuple[float, float, float, float, float]
-
-
-def friction_at(x: np.ndarray, y: np.ndarray, patches: Sequence[Patch], base: float) -> np.ndarray:
-    """μ of the table at points (x, y): the first patch containing a point, else ``base``."""
-    mu = np.full(np.shape(x), float(base))
-    free = np.ones(np.shape(x), dtype=bool)
-    for x0, x1, y0, y1, pmu in patches:
-        inside = free & (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
-        mu[inside] = pmu
-        free &= ~inside
-    return mu
 
 
 def face_grid(width: float, depth: float, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -68,16 +59,6 @@ def face_grid(width: float, depth: float, n: int) -> tuple[np.ndarray, np.ndarra
     eta = (np.arange(n) + 0.5) / n * depth - depth / 2.0
     gx, gy = np.meshgrid(xi, eta, indexing="ij")
     return gx.ravel(), gy.ravel()
-
-
-def pressure_weights(
-    xi: np.ndarray, eta: np.ndarray, width: float, depth: float, cop: tuple[float, float]
-) -> np.ndarray:
-    """The linear pressure (2) with centre of pressure ``cop`` (face coordinates [m]) at the
-    grid cells, clipped at 0 (lift-off); not normalised."""
-    c_xi, c_eta = cop
-    p = 1.0 + 12.0 * c_xi * xi / width**2 + 12.0 * c_eta * eta / depth**2
-    return np.clip(p, 0.0, None)
 
 
 def footprint_friction(
@@ -111,14 +92,16 @@ def footprint_friction(
         return None
     r = np.asarray(points, dtype=float) - center
     cop = (np.asarray(forces, dtype=float) @ (r @ axes)) / total  # (c_ξ, c_η)
+    rows = np.asarray(patches, dtype=float).reshape(-1, 5)
     xi, eta = grid
-    w = pressure_weights(xi, eta, size[0], size[1], (float(cop[0]), float(cop[1])))
+    w, mu = cell_weights_and_friction(
+        center, axes, xi, eta, (float(size[0]), float(size[1])), (float(cop[0]), float(cop[1])),
+        rows, float(base),
+    )  # fmt: skip
     if w.sum() <= 0.0:  # centre of pressure off the face (cannot happen for points on it)
         pts = np.asarray(points, dtype=float)
-        mu_pts = friction_at(pts[:, 0], pts[:, 1], patches, base)
+        mu_pts = friction_at(pts[:, 0].copy(), pts[:, 1].copy(), rows, float(base))
         return float(np.asarray(forces, dtype=float) @ mu_pts / total)
-    cells = center[:2, None] + axes[:2, :] @ np.vstack([xi, eta])  # table (x, y) of each cell
-    mu = friction_at(cells[0], cells[1], patches, base)
     return float(w @ mu / w.sum())
 
 
