@@ -191,7 +191,7 @@ class CollisionDetector:
         self.dim: int | None = None
         self.events: list[CollisionEvent] = []
         self._times: deque[float] = deque()
-        self._forces: deque[list[float]] = deque()
+        self._forces: list[deque[float]] = []  # one column per axis, over the reference window
         self._t_first = math.nan
         self._t_last = -math.inf
         self._v_last: np.ndarray | None = None
@@ -219,7 +219,7 @@ class CollisionDetector:
             if arr.shape != (n,) or n < 1:
                 raise ConfigError(f"{self.key}.{name}", f"must be {n} numbers, got {value!r}")
             out.append(arr)
-        if not math.isfinite(float(sum(a.sum() for a in out))):
+        if not math.isfinite(sum(sum(a.tolist()) for a in out)):
             raise ConfigError(f"{self.key}.update", "position, velocity and force must be finite")
         return out
 
@@ -237,16 +237,20 @@ class CollisionDetector:
         p, v, f = self._vectors(position, velocity, force)
         if self.dim is None:
             self.dim, self._t_first = p.shape[0], t
+        if not self._forces:
+            self._forces = [deque() for _ in range(self.dim)]
         self._t_last = t
         times, forces = self._times, self._forces
         while times and t - times[0] > self.reference_window_s + _EPS_S:
             times.popleft()
-            forces.popleft()
+            for col in forces:
+                col.popleft()
         if self._cand is None and self._v_last is not None:
             self._maybe_start(t, p, f)
         event = None if self._cand is None else self._advance(t, v, f)
         times.append(t)
-        forces.append(f.tolist())
+        for col, fi in zip(forces, f.tolist(), strict=True):
+            col.append(fi)
         self._v_last = v
         return event
 
@@ -263,7 +267,7 @@ class CollisionDetector:
         speed = float(np.linalg.norm(v_pre))
         if speed < self.min_approach_speed:
             return
-        f_ref = np.array([statistics.median(c) for c in zip(*self._forces, strict=True)])
+        f_ref = np.array([statistics.median(col) for col in self._forces])
         if float(np.linalg.norm(f - f_ref)) > self.jump_threshold_N:
             self._cand = _Candidate(t, p, v_pre, v_pre / speed, speed, f_ref)
 
