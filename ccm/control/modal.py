@@ -358,5 +358,9 @@ class ModalAVIC(AVIC):
 
 
 def _dot(a: list[float], b: list[float]) -> float:
-    """``a · b`` of two short lists of floats."""
+    """``a · b`` of two short lists of floats, summed in order (unrolled up to 3 entries)."""
+    if len(a) == 3:
+        return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    if len(a) == 2:
+        return a[0] * b[0] + a[1] * b[1]
     return sum(x * y for x, y in zip(a, b, strict=True))
