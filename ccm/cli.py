@@ -364,7 +364,11 @@ def _run_locked(cfg: DictConfig, out_dir: Path, task_overrides: list[str], multi
     finished: list[dict] = []  # the trial loop's records, kept if the run is interrupted
     try:
         # one BLAS thread per job (cfg.blas_threads): parallel sweep workers must not
-        # oversubscribe the cores, and the same count everywhere keeps results identical
+        # oversubscribe the cores, and the same count everywhere keeps results identical.
+        # threadpoolctl limits only the BLAS libraries already loaded: scipy's own OpenBLAS
+        # (GP fits, L-BFGS-B) is loaded here first, else it kept its default thread count
+        import scipy.linalg  # noqa: F401
+
         with threadpool_limits(limits=int(cfg.get("blas_threads") or 1)):
             summary = run_experiment(
                 cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir,

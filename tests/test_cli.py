@@ -144,3 +144,35 @@ def test_list_help_and_unknown_command(tmp_path: Path) -> None:
     res = ccm(["frobnicate"], tmp_path)
     assert res.returncode == 2
     assert "allowed: run, list" in res.stderr
+
+
+_BLAS_PROBE = """
+import json, sys
+import ccm.runner
+from threadpoolctl import threadpool_info
+from ccm.cli import main
+
+def probe(cfg, compose, out_dir, **kwargs):
+    import scipy.linalg, scipy.optimize  # what a GP fit loads, if nothing has yet
+    threads = [i["num_threads"] for i in threadpool_info() if i["internal_api"] == "openblas"]
+    print("BLAS-THREADS", json.dumps(threads))
+    return {"status": "ok", "conditions": {}, "trials": []}
+
+ccm.runner.run_experiment = probe
+sys.exit(main(["run", "experiment=smoke", "hydra.run.dir=" + sys.argv[1]]))
+"""
+
+
+def test_a_run_limits_every_blas_library_to_blas_threads(tmp_path: Path) -> None:
+    """``blas_threads: 1`` reaches scipy's own OpenBLAS too (GP fits, L-BFGS-B), not only the
+    libraries loaded when the limit was set: a multi-threaded GP fit on the 2-core machines
+    ran ~5x slower, and parallel sweep workers would oversubscribe the cores."""
+    out = subprocess.run(
+        [sys.executable, "-c", _BLAS_PROBE, str(tmp_path / "run")],
+        capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("BLAS-THREADS")]
+    assert lines, out.stdout + out.stderr
+    threads = json.loads(lines[0].split(" ", 1)[1])
+    assert len(threads) >= 2, threads  # numpy's and scipy's OpenBLAS
+    assert threads == [1] * len(threads)
