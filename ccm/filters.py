@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 
+from ccm._filter_kernels import lowpass_rows
+
 
 def first_order_alpha(dt: float, cutoff_hz: float) -> float:
     """Gain α of ``y_k = y_{k-1} + α (x_k − y_{k-1})``: α = dt / (dt + 1/(2π f_c))."""
@@ -14,14 +16,13 @@ def first_order_alpha(dt: float, cutoff_hz: float) -> float:
 
 
 def lowpass_sequence(x: np.ndarray, alpha: float) -> np.ndarray:
-    """``y_k = y_{k-1} + α (x_k − y_{k-1})`` along axis 0, from y_0 = x_0 (causal)."""
-    y = np.empty_like(x, dtype=float)
-    if len(x) == 0:
-        return y
-    y[0] = x[0]
-    for k in range(1, len(x)):
-        y[k] = y[k - 1] + alpha * (x[k] - y[k - 1])
-    return y
+    """``y_k = y_{k-1} + α (x_k − y_{k-1})`` along axis 0, from y_0 = x_0 (causal); compiled
+    (:func:`ccm._filter_kernels.lowpass_rows`)."""
+    x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return np.empty_like(x)
+    rows = np.ascontiguousarray(x.reshape(len(x), -1))
+    return lowpass_rows(rows, float(alpha)).reshape(x.shape)
 
 
 def fft_split(x: np.ndarray, dt: float, f_hz: float) -> tuple[np.ndarray, np.ndarray]:
