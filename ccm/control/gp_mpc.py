@@ -41,6 +41,9 @@ from ccm.types import Command, Observation, TargetSample
 
 AXES = ("x", "y", "z")
 
+#: the per-axis signal keys, in column order
+_AXIS_SIGNALS = tuple((f"mass_{a}_kg", f"damping_{a}_Nspm", f"f_ref_{a}_N") for a in AXES)
+
 
 class GPMPC(Controller):
     """Seed B's GP-MPC impedance controller on an admittance-rendering inner loop.
@@ -119,6 +122,7 @@ class GPMPC(Controller):
             raise ConfigError(f"{key}.demo_modes", f"labels must be 0..N-1, each used; got {modes}")
         self.demo_modes = modes
         self.n_modes = max(modes) + 1 if modes else 1
+        self._belief_signals = tuple(f"belief_{m}" for m in range(self.n_modes))
         self.record_every = int(check_positive(f"{key}.record_every", record_every))
         self.gp_cfg = dict(gp or {})
         self.max_points = int(check_positive(f"{key}.max_points", max_points))
@@ -295,14 +299,14 @@ class GPMPC(Controller):
 
     # ---------------------------------------------------------------- reporting
     def signals(self) -> dict[str, float]:
+        """``mass_<axis>_kg``, ``damping_<axis>_Nspm``, ``f_ref_<axis>_N`` per axis (the MPC's
+        last accepted output), ``belief_<m>`` per mode, ``mpc_infeasible``, ``demonstration``."""
         out: dict[str, float] = {}
-        for i in range(self.dim):
-            a = AXES[i]
-            out[f"mass_{a}_kg"] = float(self.mass[i])
-            out[f"damping_{a}_Nspm"] = float(self.damping[i])
-            out[f"f_ref_{a}_N"] = float(self.f_ref[i])
-        for m in range(self.n_modes):
-            out[f"belief_{m}"] = float(self.belief[m])
+        values = zip(self.mass.tolist(), self.damping.tolist(), self.f_ref.tolist(), strict=True)
+        for (k_m, k_d, k_f), (m, d, f) in zip(_AXIS_SIGNALS, values, strict=False):
+            out[k_m], out[k_d], out[k_f] = m, d, f
+        for k, b in zip(self._belief_signals, self.belief.tolist(), strict=True):
+            out[k] = b
         out["mpc_infeasible"] = float(getattr(self, "infeasible", 0))
         out["demonstration"] = 1.0 if self.demonstrating else 0.0
         return out
