@@ -266,16 +266,15 @@ class Pymunk2D(Simulator):
             fsx, fsy = self._spring_force(x, y)
             c = self._viscosity(x, y) if self._has_viscous else 0.0
             fex, fey = fsx - c * vx, fsy - c * vy
+            if self._rotates:
+                body.torque = ctq
             if hri is not None:  # human + vibration join (fex, fey); compliant walls: (wx, wy)
                 hx, hy, wx, wy, nw = hri.step(x, y, vx, vy, self._steps * dt)
                 fex += hx
                 fey += hy
-                raw.set_force(cfx + fex + wx, cfy + fey + wy)
+                nx, ny, vx, vy = raw.advance(cfx + fex + wx, cfy + fey + wy, dt)
             else:
-                raw.set_force(cfx + fex, cfy + fey)
-            if self._rotates:
-                body.torque = ctq
-            raw.step(dt)
+                nx, ny, vx, vy = raw.advance(cfx + fex, cfy + fey, dt)
             if self._has_static:
                 kfx, kfy, ktq, n_contacts, mu = self._contacts.read(body)
             else:  # nothing to touch: skip the arbiter walk (hot path of contact-free scenes)
@@ -292,7 +291,6 @@ class Pymunk2D(Simulator):
             stq += ktq
             skx += kfx
             sky += kfy
-            nx, ny, vx, vy = raw.state()
             self._steps += 1
             self._path += math.hypot(nx - x, ny - y)
             x, y = nx, ny
