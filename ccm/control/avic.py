@@ -241,16 +241,19 @@ class AVIC(FixedImpedance):
         err = persist = pred = math.nan
         if s_past is not None:
             if pred_now is not None and self.model.ready:
-                pred, persist = float(pred_now[0]), float(s_past[2])
-                err = math.hypot(d[0] - pred, d[1] - pred_now[1])
+                (pred, pred_tq), (_, _, d_f, d_tq) = pred_now.tolist(), s.tolist()
+                persist = float(s_past[2])
+                err = math.hypot(d_f - pred, d_tq - pred_tq)
                 self._observe_error(err)
             self.learn(s_past, d)
-        stiff = not self.adaptive or self.calibrating or self.hold_k_max()
+        calibrating = self.calibrating  # fixed during a trial
+        stiff = not self.adaptive or calibrating or self.hold_k_max()
         lam = 0.0 if stiff else self._lam
         kp = self.k_max if stiff else self.stiffness_for(lam)
         kd = self.damping_for(kp)
         u_motion, u_force = self.motion_force(obs, target, kp, kd)
-        self.forecast.push(s, self.model.predict(s) if self.model.ready else None)
+        model = self.model
+        self.forecast.push(s, model.predict(s) if model.ready else None)
         pred_next = self.forecast.next_prediction()  # D̂_{t+1}, for the command until t+1
         u = u_motion  # a fresh array; the force loop (if any) is added in place
         if u_force is not self._zero:
@@ -266,8 +269,8 @@ class AVIC(FixedImpedance):
         sig["lambda"], sig["pred_force_N"], sig["persist_force_N"] = self._lam, pred, persist
         sig["pred_error_N"], sig["pred_error_lp_N"] = err, self._err_lp
         sig["stiffness_Npm"], sig["damping_Nspm"] = kp, kd
-        sig["n_components"] = float(getattr(self.model, "n_components", 0))
-        sig["calibrating"] = 1.0 if self.calibrating else 0.0
+        sig["n_components"] = float(getattr(model, "n_components", 0))
+        sig["calibrating"] = 1.0 if calibrating else 0.0
         return Command(force=u, torque=self.rotation_torque(obs, target))
 
     def _observe_error(self, err: float) -> None:

@@ -160,19 +160,28 @@ class IncrementalForwardModel:
         horizon_s: float = DEFAULT_HORIZON_S,
         key: str = "controller.forward_model",
     ) -> None:
+        from ccm.learn import _forward_kernels  # numba: only for this model
         from ccm.learn.igmm import IGMM
 
+        self._fit_scaled = _forward_kernels.fit_scaled
+        self._predict_scaled = _forward_kernels.predict_scaled
         self.scale = _check_scale(feature_scale, f"{key}.feature_scale")
         self.horizon_s = check_positive(f"{key}.horizon_s", horizon_s)
         self.model = IGMM(N_STATE + N_EFFECT, **(igmm or {}), key=f"{key}.igmm")
-        self._gmr = self.model.conditional(IN_IDX, OUT_IDX)  # refreshed by the model itself
-        # reused buffers of the per-step calls (the IGMM's row fast paths)
+        # reused buffers of the per-step kernel calls (ccm.learn._forward_kernels)
         self._x = np.empty((1, N_STATE + N_EFFECT))
         self._x_in = np.empty((1, N_STATE))
         self._y = np.empty((1, N_EFFECT))
-        # their state / effect halves and those of the scale, as views made once (not per step)
-        self._x_s, self._x_d = self._x[0, :N_STATE], self._x[0, N_STATE:]
-        self._scale_s, self._scale_d = self.scale[:N_STATE], self.scale[N_STATE:]
+        self._no_cov = np.zeros((1, N_EFFECT, N_EFFECT))
+        self._bind(self.model)
+
+    def _bind(self, model: Any) -> None:
+        """Use ``model``: its GMR view (refreshed by the model itself) and the buffers both
+        hand to the kernels (fixed for the model's life)."""
+        self.model = model
+        self._gmr = model.conditional(IN_IDX, OUT_IDX)
+        self._fit_buffers = model.kernel_buffers()
+        self._gmr_buffers = self._gmr.kernel_buffers()
 
     @property
     def ready(self) -> bool:
@@ -180,18 +189,26 @@ class IncrementalForwardModel:
         return self.model.n_components_ > 0
 
     def update(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
-        """Add X_t = [S_{t−1}, D_t] (Eq. 5, one incremental step)."""
-        np.divide(s_prev, self._scale_s, out=self._x_s)  # X / scale, as the IGMM sees it
-        np.divide(d_now, self._scale_d, out=self._x_d)
-        self.model.partial_fit_row(self._x)
+        """Add X_t = [S_{t−1}, D_t] / scale (Eq. 5, one incremental step; one kernel call).
+
+        Raises:
+            ValueError: a non-finite point (the model is left unchanged).
+        """
+        if self._fit_scaled(s_prev, d_now, self.scale, self._x, *self._fit_buffers):
+            raise ValueError("X: the point is not finite; the model was not changed")
 
     def predict(self, s_now: np.ndarray) -> np.ndarray:
-        """D̂_{t+1} = f_fm(S_t) by GMR (Eq. 6); zeros before the first point."""
-        if not self.ready:
+        """D̂_{t+1} = f_fm(S_t) by GMR on S_t / scale, times the scale of D (Eq. 6; one kernel
+        call); zeros before the first point."""
+        out = np.empty(N_EFFECT)
+        status = self._predict_scaled(
+            s_now, self.scale, self._x_in, *self._gmr_buffers, self._y, self._no_cov, out
+        )
+        if status == -1:  # no component yet
             return np.zeros(N_EFFECT)
-        np.divide(s_now, self._scale_s, out=self._x_in[0])
-        self._gmr.predict_into(self._x_in, self._y)
-        return self._y[0] * self._scale_d
+        if status:
+            self._gmr.raise_status(status)
+        return out
 
     def end_trial(self) -> None:
         """Nothing to do: the model learns every step."""
@@ -227,8 +244,7 @@ class IncrementalForwardModel:
             model = IGMM.from_dict({**snap, "params": self.model.get_params()}, key=self.model.key)
         except ConfigError as exc:
             raise ValueError(str(exc)) from None
-        self.model = model
-        self._gmr = model.conditional(IN_IDX, OUT_IDX)
+        self._bind(model)
 
 
 class FrozenGMMForwardModel:
