@@ -161,6 +161,7 @@ class Pymunk2D(Simulator):
         check_start_2d(scene, self.start)
         self.max_speed = self.config.max_speed
         self.sensor = FTSensor(self.config.sensor, force_dim=2, torque_dim=1)
+        self._ideal_sensor = self.sensor.ideal
         self._space: pymunk.Space | None = None
         self._body: pymunk.Body | None = None
         self._rng: np.random.Generator | None = None
@@ -260,13 +261,14 @@ class Pymunk2D(Simulator):
         raw = self._raw
         x, y, vx, vy = self._state if self._state is not None else raw.state()
         hri = self._hri
+        viscous, rotates, static = self._has_viscous, self._rotates, self._has_static
         if hri is not None:
             hri.start_period()
         for _ in range(self.control_decimation):
             fsx, fsy = self._spring_force(x, y)
-            c = self._viscosity(x, y) if self._has_viscous else 0.0
+            c = self._viscosity(x, y) if viscous else 0.0
             fex, fey = fsx - c * vx, fsy - c * vy
-            if self._rotates:
+            if rotates:
                 body.torque = ctq
             if hri is not None:  # human + vibration join (fex, fey); compliant walls: (wx, wy)
                 hx, hy, wx, wy, nw = hri.step(x, y, vx, vy, self._steps * dt)
@@ -275,14 +277,14 @@ class Pymunk2D(Simulator):
                 nx, ny, vx, vy = raw.advance(cfx + fex + wx, cfy + fey + wy, dt)
             else:
                 nx, ny, vx, vy = raw.advance(cfx + fex, cfy + fey, dt)
-            if self._has_static:
+            if static:
                 kfx, kfy, ktq, n_contacts, mu = self._contacts.read(body)
             else:  # nothing to touch: skip the arbiter walk (hot path of contact-free scenes)
                 kfx = kfy = ktq = 0.0
             if hri is not None:  # a compliant wall is a (frictionless) contact
                 kfx += wx
                 kfy += wy
-                n_static = n_contacts if self._has_static else 0
+                n_static = n_contacts if static else 0
                 if nw and not n_static:
                     mu = 0.0
                 n_contacts = n_static + nw
@@ -447,7 +449,7 @@ class Pymunk2D(Simulator):
             x, y, vx, vy = state
         angle, omega = (body.angle, body.angular_velocity) if self._rotates else (self._angle0, 0.0)
         fx, fy, tq, kx, ky = wrench
-        if self.sensor.ideal:  # measured = true, as FTSensor.measure gives it (a copy)
+        if self._ideal_sensor:  # measured = true, as FTSensor.measure gives it (a copy)
             b = np.array([x, y, angle, vx, vy, omega, fx, fy, tq, kx, ky, fx, fy, tq])
             f_meas, t_meas = b[_MEAS_F], b[_MEAS_T]
         else:
