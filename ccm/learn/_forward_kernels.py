@@ -40,3 +40,18 @@ def predict_scaled(s, scale, x_in, split, means, covs, comp, istate, cache, y, n
         for r in range(out.shape[0]):
             out[r] = y[0, r] * scale[ns + r]
     return status
+
+
+@njit(**_JIT)
+def fit_predict_scaled(
+    s, d, s_now, scale, row, x_in, y, no_cov, out,
+    means, covs, chols, comp, istate, params, sigma2, work, split, cache,
+):  # fmt: skip
+    """:func:`fit_scaled` of [s, d], then :func:`predict_scaled` of ``s_now`` (one call for
+    the two of a control step). Returns 1 if the point is not finite (nothing changed, no
+    prediction), else :func:`gmr_rows`'s status."""
+    if fit_scaled(s, d, scale, row, means, covs, chols, comp, istate, params, sigma2, work):
+        return 1
+    return predict_scaled(
+        s_now, scale, x_in, split, means, covs, comp, istate, cache, y, no_cov, out
+    )
