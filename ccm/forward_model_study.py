@@ -32,11 +32,8 @@ from omegaconf import DictConfig
 
 from ccm.adaptation_metrics import skill
 from ccm.errors import ConfigError, check_int_positive, check_range, config_block
-from ccm.learn.forward_model import (
-    N_STATE,
-    horizon_steps,
-    make_forward_model,
-)
+from ccm.learn.forecast import horizon_steps
+from ccm.learn.forward_model import N_STATE, make_forward_model
 from ccm.records import write_json_atomic
 from ccm.runner import build_components, run_trial, trial_seed
 

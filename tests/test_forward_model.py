@@ -6,11 +6,10 @@ import numpy as np
 import pytest
 
 from ccm.errors import ConfigError
+from ccm.learn.forecast import ForecastBuffer, horizon_steps
 from ccm.learn.forward_model import (
-    ForecastBuffer,
     FrozenGMMForwardModel,
     IncrementalForwardModel,
-    horizon_steps,
     magnitudes,
     make_forward_model,
 )

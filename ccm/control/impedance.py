@@ -50,7 +50,7 @@ def impedance_term(
     order, bit for bit); otherwise, or for other gain shapes, the numpy lines below.
     """
     n = obs.position.shape[0]
-    if compiled and _kernel_gain(kp, n) and _kernel_gain(kd, n):
+    if compiled and _kernel_gain(kp, n) and _kernel_gain(kd, n):  # checks of ~0.1 µs
         return impedance_kernel(
             target.position, obs.position, target.velocity, obs.lin_vel, target.acceleration,
             kp, kd, mass_kg, inertia_feedforward,
@@ -66,11 +66,15 @@ def impedance_term(
     return u
 
 
+_F64 = np.dtype(np.float64)
+
+
 def _kernel_gain(k: object, n: int) -> bool:
     """Whether the kernel takes gain ``k`` for ``n`` axes: a float, or float64 shape (n,)."""
-    if type(k) is float or type(k) is np.float64:
+    t = type(k)
+    if t is float or t is np.float64:
         return True
-    return type(k) is np.ndarray and k.shape == (n,) and k.dtype == np.float64
+    return t is np.ndarray and k.dtype is _F64 and k.shape == (n,)  # type: ignore[attr-defined]
 
 
 class FixedImpedance(Controller):
@@ -195,10 +199,11 @@ class FixedImpedance(Controller):
 
     def rotation_torque(self, obs: Observation, target: TargetSample) -> np.ndarray:
         """Orientation impedance (2D: angle error; 3D handled by the 3D backend's controller)."""
-        if obs.orientation.shape[0] == 1:
-            err = float(target.orientation[0] - obs.orientation[0])
-            err = (err + math.pi) % (2.0 * math.pi) - math.pi
-            return np.array([self.rot_stiffness * err - self.rot_damping * obs.ang_vel[0]])
+        if obs.orientation.shape[0] == 1:  # plain floats: the same IEEE operations as numpy's
+            (a_d,), (a,) = target.orientation.tolist(), obs.orientation.tolist()
+            (w,) = obs.ang_vel.tolist()
+            err = (a_d - a + math.pi) % (2.0 * math.pi) - math.pi
+            return np.array([self.rot_stiffness * err - self.rot_damping * w])
         return np.zeros(3)
 
     def step(self, obs: Observation, target: TargetSample) -> Command:

@@ -6,10 +6,11 @@ A point is X_t = [S_{t−1}, D_t] with (Eq. 2, 3)
 
 and a model predicts D_{t+1} from S_t by GMR (Eq. 6). Here "t + 1" is one *model* step, the
 horizon ``horizon_s`` = H control periods: points are X_t = [S_{t−H}, D_t] and the model
-predicts D_{t+H} from S_t, while control stays at 1 kHz (:class:`ForecastBuffer` keeps the
-pairs). One control step ahead, a prediction from ‖F_t‖ cannot beat persistence
-(D̂_{t+1} = D_t) under sensor noise; experiments/tuning/forward_model_horizon.md measures the
-skill against the horizon. Magnitudes make the model independent
+predicts D_{t+H} from S_t, while control stays at 1 kHz
+(:class:`~ccm.learn.forecast.ForecastBuffer` keeps the pairs). One control step ahead, a
+prediction from ‖F_t‖ cannot beat persistence (D̂_{t+1} = D_t) under sensor noise;
+experiments/tuning/forward_model_horizon.md measures the skill against the horizon.
+Magnitudes make the model independent
 of the direction of motion; the controller turns a predicted magnitude back into a vector
 (see :mod:`ccm.control.avic`). Features are divided by ``feature_scale`` (their typical size,
 in their own units) before they reach the mixture, so that one isotropic initial covariance
@@ -59,58 +60,6 @@ def magnitudes(
     )
 
 
-def horizon_steps(horizon_s: float, control_dt: float, key: str) -> int:
-    """The prediction horizon in control steps: ``horizon_s`` must be a whole number (>= 1)
-    of control periods, e.g. 0.01 s at 1 kHz -> 10."""
-    h = check_positive(key, horizon_s)
-    n = round(h / control_dt)
-    if n < 1 or abs(n * control_dt - h) > 1e-9 * max(1.0, h):
-        raise ConfigError(
-            key, f"must be a whole number of control periods ({control_dt:g} s), got {horizon_s!r}"
-        )
-    return int(n)
-
-
-class ForecastBuffer:
-    """The last H states and the predictions made from them, for an H-step forward model.
-
-    A forward model with horizon H control steps learns X = [S_{t−H}, D_t] and predicts
-    D̂_{t+H} = f(S_t) (seed A Eq. 5–6 with the model's step = H control periods). At control
-    step t the buffer gives back S_{t−H} and D̂_t (made H steps ago) for the error and the
-    learning point, and D̂_{t+1} (made H − 1 steps ago, or now if H = 1) for the feed-forward
-    of the command that acts until t + 1. It keeps references, not copies: the caller passes
-    arrays it does not modify afterwards (AVIC makes fresh ones every step).
-
-    Args:
-        horizon: H >= 1 control steps.
-    """
-
-    def __init__(self, horizon: int) -> None:
-        self.horizon = check_int_positive("forward_model.horizon", horizon)
-        self._states: list[np.ndarray | None] = [None] * self.horizon
-        self._preds: list[np.ndarray | None] = [None] * self.horizon
-        self._i = 0  # slot of the step about to be pushed: (steps pushed) mod H
-
-    def past(self) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """(S_{t−H}, D̂_t) for the step about to be pushed; None where not available (the
-        first H steps of a trial, or no prediction was made then)."""
-        return self._states[self._i], self._preds[self._i]
-
-    def push(self, state: np.ndarray, prediction: np.ndarray | None) -> None:
-        """Store S_t and D̂_{t+H} = f(S_t) (None: the model could not predict yet)."""
-        i = self._i
-        self._states[i], self._preds[i] = state, prediction
-        self._i = i + 1 if i + 1 < self.horizon else 0
-
-    def next_prediction(self) -> np.ndarray | None:
-        """D̂_{t+1} after :meth:`push` of step t: the prediction for the next control step."""
-        return self._preds[self._i]
-
-    def forget_predictions(self) -> None:
-        """Drop every stored prediction (the model that made them was replaced)."""
-        self._preds = [None] * self.horizon
-
-
 def _check_scale(scale: Sequence[float], key: str) -> np.ndarray:
     arr = np.asarray(list(scale), dtype=float)
     if arr.shape != (N_STATE + N_EFFECT,):
@@ -149,7 +98,7 @@ class IncrementalForwardModel:
         feature_scale: divisor per feature of X = [S, D] (6 values).
         igmm: keyword arguments of :class:`ccm.learn.igmm.IGMM`.
         horizon_s: H, the time between S and the D it predicts [s]; whoever feeds the model
-            pairs H apart (:class:`ForecastBuffer`) reads it.
+            pairs H apart (:class:`~ccm.learn.forecast.ForecastBuffer`) reads it.
         key: config prefix for error messages.
     """
 
@@ -160,19 +109,30 @@ class IncrementalForwardModel:
         horizon_s: float = DEFAULT_HORIZON_S,
         key: str = "controller.forward_model",
     ) -> None:
+        from ccm.learn import _forward_kernels  # numba: only for this model
         from ccm.learn.igmm import IGMM
 
+        self._fit_scaled = _forward_kernels.fit_scaled
+        self._predict_scaled = _forward_kernels.predict_scaled
+        self._fit_predict_scaled = _forward_kernels.fit_predict_scaled
         self.scale = _check_scale(feature_scale, f"{key}.feature_scale")
         self.horizon_s = check_positive(f"{key}.horizon_s", horizon_s)
         self.model = IGMM(N_STATE + N_EFFECT, **(igmm or {}), key=f"{key}.igmm")
-        self._gmr = self.model.conditional(IN_IDX, OUT_IDX)  # refreshed by the model itself
-        # reused buffers of the per-step calls (the IGMM's row fast paths)
+        # reused buffers of the per-step kernel calls (ccm.learn._forward_kernels)
         self._x = np.empty((1, N_STATE + N_EFFECT))
         self._x_in = np.empty((1, N_STATE))
         self._y = np.empty((1, N_EFFECT))
-        # their state / effect halves and those of the scale, as views made once (not per step)
-        self._x_s, self._x_d = self._x[0, :N_STATE], self._x[0, N_STATE:]
-        self._scale_s, self._scale_d = self.scale[:N_STATE], self.scale[N_STATE:]
+        self._no_cov = np.zeros((1, N_EFFECT, N_EFFECT))
+        self._bind(self.model)
+
+    def _bind(self, model: Any) -> None:
+        """Use ``model``: its GMR view (refreshed by the model itself) and the buffers both
+        hand to the kernels (fixed for the model's life)."""
+        self.model = model
+        self._gmr = model.conditional(IN_IDX, OUT_IDX)
+        self._fit_buffers = model.kernel_buffers()
+        self._gmr_buffers = self._gmr.kernel_buffers()
+        self._split_cache = (self._gmr_buffers[0], self._gmr_buffers[-1])
 
     @property
     def ready(self) -> bool:
@@ -180,18 +140,48 @@ class IncrementalForwardModel:
         return self.model.n_components_ > 0
 
     def update(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
-        """Add X_t = [S_{t−1}, D_t] (Eq. 5, one incremental step)."""
-        np.divide(s_prev, self._scale_s, out=self._x_s)  # X / scale, as the IGMM sees it
-        np.divide(d_now, self._scale_d, out=self._x_d)
-        self.model.partial_fit_row(self._x)
+        """Add X_t = [S_{t−1}, D_t] / scale (Eq. 5, one incremental step; one kernel call).
+
+        Raises:
+            ValueError: a non-finite point (the model is left unchanged).
+        """
+        if self._fit_scaled(s_prev, d_now, self.scale, self._x, *self._fit_buffers):
+            raise ValueError("X: the point is not finite; the model was not changed")
 
     def predict(self, s_now: np.ndarray) -> np.ndarray:
-        """D̂_{t+1} = f_fm(S_t) by GMR (Eq. 6); zeros before the first point."""
-        if not self.ready:
+        """D̂_{t+1} = f_fm(S_t) by GMR on S_t / scale, times the scale of D (Eq. 6; one kernel
+        call); zeros before the first point."""
+        out = np.empty(N_EFFECT)
+        status = self._predict_scaled(
+            s_now, self.scale, self._x_in, *self._gmr_buffers, self._y, self._no_cov, out
+        )
+        if status == -1:  # no component yet
             return np.zeros(N_EFFECT)
-        np.divide(s_now, self._scale_s, out=self._x_in[0])
-        self._gmr.predict_into(self._x_in, self._y)
-        return self._y[0] * self._scale_d
+        if status:
+            self._gmr.raise_status(status)
+        return out
+
+    def update_predict(
+        self, s_prev: np.ndarray, d_now: np.ndarray, s_now: np.ndarray
+    ) -> np.ndarray | None:
+        """:meth:`update` with [S_{t−1}, D_t], then :meth:`predict` from S_t (one kernel call;
+        None if the model has no component to predict with).
+
+        Raises:
+            ValueError: a non-finite point (the model is left unchanged).
+        """
+        out = np.empty(N_EFFECT)
+        status = self._fit_predict_scaled(
+            s_prev, d_now, s_now, self.scale, self._x, self._x_in, self._y, self._no_cov, out,
+            *self._fit_buffers, *self._split_cache,
+        )  # fmt: skip
+        if status == 1:
+            raise ValueError("X: the point is not finite; the model was not changed")
+        if status == -1:
+            return None
+        if status:
+            self._gmr.raise_status(status)
+        return out
 
     def end_trial(self) -> None:
         """Nothing to do: the model learns every step."""
@@ -227,8 +217,7 @@ class IncrementalForwardModel:
             model = IGMM.from_dict({**snap, "params": self.model.get_params()}, key=self.model.key)
         except ConfigError as exc:
             raise ValueError(str(exc)) from None
-        self.model = model
-        self._gmr = model.conditional(IN_IDX, OUT_IDX)
+        self._bind(model)
 
 
 class FrozenGMMForwardModel:

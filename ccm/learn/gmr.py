@@ -315,11 +315,12 @@ class GMRConditional:
             mean, cov, want_cov,
         )  # fmt: skip
         if status != 0:
-            self._raise(status)
+            self.raise_status(status)
         return mean, (cov if want_cov else None), single
 
     @staticmethod
-    def _raise(status: int) -> None:
+    def raise_status(status: int) -> None:
+        """Raise the ValueError for a non-zero :func:`~ccm.learn._igmm_kernels.gmr_rows` status."""
         if status == -1:
             raise ValueError("the mixture has no components yet: call partial_fit first")
         if status <= -10:
@@ -341,19 +342,10 @@ class GMRConditional:
         mean, _, single = self._run(x_in, False)
         return mean[0] if single else mean
 
-    def predict_into(self, x_in: np.ndarray, out: np.ndarray) -> None:
-        """:meth:`predict` of one input into ``out`` without conversions, for a control loop.
-
-        Args:
-            x_in: float64 C-contiguous array of shape (1, n_in).
-            out: float64 C-contiguous array of shape (1, n_out), overwritten.
-        """
-        status = _k.gmr_rows(
-            x_in, self._split, self._means, self._covs, self._comp, self._istate, self._cache,
-            out, self._no_cov, False,
-        )  # fmt: skip
-        if status != 0:
-            self._raise(status)
+    def kernel_buffers(self) -> tuple[np.ndarray, ...]:
+        """The arguments :func:`ccm.learn._igmm_kernels.gmr_rows` takes between the rows and
+        the output (split, mixture buffers, cache), for a control loop that calls it itself."""
+        return self._split, self._means, self._covs, self._comp, self._istate, self._cache
 
     def predict_cov(self, x_in: Any) -> tuple[np.ndarray, np.ndarray]:
         """Conditional mean and covariance of x_out given x_in.

@@ -353,22 +353,13 @@ class IGMM:
             raise ValueError(f"X: row {-status - 1} is not finite; the model was not changed")
         return self
 
-    def partial_fit_row(self, row: np.ndarray) -> None:
-        """:meth:`partial_fit` of one point without the input conversion, for a control loop.
-
-        Args:
-            row: float64 C-contiguous writable array of shape (1, d), e.g. a buffer the caller
-                reuses (not kept).
-
-        Raises:
-            ValueError: a non-finite value (the model is left unchanged).
-        """
-        status = _k.fit_rows(
-            row, self._means, self._covs, self._chols, self._comp, self._istate, self._params,
+    def kernel_buffers(self) -> tuple[np.ndarray, ...]:
+        """The mixture buffers :func:`ccm.learn._igmm_kernels.fit_rows` takes after the rows
+        (fixed for the model's life), for a control loop that calls the kernels itself."""
+        return (
+            self._means, self._covs, self._chols, self._comp, self._istate, self._params,
             self._sigma2, self._work,
         )  # fmt: skip
-        if status:
-            raise ValueError("X: the point is not finite; the model was not changed")
 
     def fit(self, X: Any) -> IGMM:
         """:meth:`reset`, then :meth:`partial_fit` on the rows of ``X`` in order."""

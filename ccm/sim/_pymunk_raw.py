@@ -52,6 +52,20 @@ class RawBody:
         else:
             self._lib.cpSpaceStep(self._cp_space, dt)
 
+    def advance(self, fx: float, fy: float, dt: float) -> tuple[float, float, float, float]:
+        """:meth:`set_force`, :meth:`step` and :meth:`state` in one call (the hot path)."""
+        lib = self._lib
+        if lib is None or self._space.threaded or any(self._pending):
+            self.set_force(fx, fy)
+            self.step(dt)
+            return self.state()
+        body = self._cp_body
+        lib.cpBodySetForce(body, (fx, fy))
+        lib.cpSpaceStep(self._cp_space, dt)
+        p = lib.cpBodyGetPosition(body)
+        v = lib.cpBodyGetVelocity(body)
+        return p.x, p.y, v.x, v.y
+
     def state(self) -> tuple[float, float, float, float]:
         """``(x, y, vx, vy)``: the body's position [m] and velocity [m/s]."""
         if self._lib is None:  # pragma: no cover - public-API fallback

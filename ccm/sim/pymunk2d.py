@@ -56,6 +56,7 @@ from ccm.errors import (
     check_positive,
     check_vector,
 )
+from ccm.sim._pymunk_contacts import ContactReader
 from ccm.sim._pymunk_raw import RawBody
 from ccm.sim.base import Simulator
 from ccm.sim.hri_forces import HRIForces
@@ -63,6 +64,11 @@ from ccm.sim.scene import SceneSpec, as_plain
 from ccm.sim.sensor import FTSensor, SensorConfig
 from ccm.sim.start_pose import check_start_2d
 from ccm.types import Command, Observation, StepInfo
+
+# the arrays of _output: slices of its one buffer
+_POS, _ANGLE, _VEL, _OMEGA = slice(0, 2), slice(2, 3), slice(3, 5), slice(5, 6)
+_TRUE_F, _TRUE_T, _CONTACT_F = slice(6, 8), slice(8, 9), slice(9, 11)
+_MEAS_F, _MEAS_T = slice(11, 13), slice(13, 14)
 
 #: second entry of the seed sequence of the HRI elements' generator (walls, human, vibration)
 HRI_STREAM = 7
@@ -155,13 +161,14 @@ class Pymunk2D(Simulator):
         check_start_2d(scene, self.start)
         self.max_speed = self.config.max_speed
         self.sensor = FTSensor(self.config.sensor, force_dim=2, torque_dim=1)
+        self._ideal_sensor = self.sensor.ideal
         self._space: pymunk.Space | None = None
         self._body: pymunk.Body | None = None
         self._rng: np.random.Generator | None = None
         self._steps = 0
         self._path = 0.0
-        # scratch for _visit_arbiter: fx, fy, torque, n points, friction, largest |impulse|
-        self._acc_contact: list[float] = [0.0, 0.0, 0.0, 0.0, -1.0, -1.0]
+        self._contacts = ContactReader(self.dt, scene.ee.rotate)
+        self._visc = (-1, 0.0)  # _viscosity's last (physics step, coefficient)
         self._springs = [
             (s.anchor[0], s.anchor[1], s.stiffness, s.rest_length) for s in scene.springs
         ]
@@ -175,7 +182,8 @@ class Pymunk2D(Simulator):
         ]
         self._scheduled_springs = any(s.scheduled for s in scene.springs)
         # _attached()'s cache: flags, attached springs, and the step window they hold for
-        self._att: tuple[list[bool], list[tuple[float, ...]], float, float] = ([], [], 1, 0)
+        self._att: tuple[list[bool], list[tuple[float, ...]], float, float, float]
+        self._att = ([], [], 1, 0, 0.0)
         self._comp_fy = scene.ee.mass * scene.gravity if self.config.gravity_compensation else 0.0
         self._has_viscous = bool(scene.viscous)
         self._rotates = scene.ee.rotate
@@ -221,6 +229,7 @@ class Pymunk2D(Simulator):
         self._space, self._body = self._build_space()
         self._raw = RawBody(self._space, self._body)
         self._state: tuple[float, ...] | None = None
+        self._visc = (-1, 0.0)
         self._rng = np.random.default_rng(seed)
         self.sensor.reset(self._rng)
         self._steps = 0
@@ -228,12 +237,11 @@ class Pymunk2D(Simulator):
         x, y = self.start[0], self.start[1]
         fsx, fsy = self._spring_force(x, y)
         if self._hri is None:
-            return self._output(np.array([fsx, fsy]), np.zeros(1), np.zeros(2), 0, -1.0)
+            return self._output((fsx, fsy, 0.0, 0.0, 0.0), 0, -1.0)
         # own stream, so the sensor's noise is the same as without the HRI elements
         self._hri.reset(np.random.default_rng(None if seed is None else [seed, HRI_STREAM]))
         wx, wy, nw = self._hri.at_rest(x, y)  # human and vibration: not applied yet
-        f_true, f_contact = np.array([fsx + wx, fsy + wy]), np.array([wx, wy])
-        return self._output(f_true, np.zeros(1), f_contact, nw, 0.0 if nw else -1.0)
+        return self._output((fsx + wx, fsy + wy, 0.0, wx, wy), nw, 0.0 if nw else -1.0)
 
     def step(self, command: Command) -> tuple[Observation, StepInfo]:
         """Hold ``command`` for ``control_decimation`` physics steps (zero-order hold).
@@ -241,9 +249,62 @@ class Pymunk2D(Simulator):
         Raises:
             SimulationDiverged: on a non-finite command or state.
         """
-        body, space = self._body, self._space
-        if body is None or space is None:
+        body = self._body
+        if body is None:
             raise RuntimeError("Pymunk2D.step() called before reset()")
+        cfx, cfy, ctq = self._command(command)
+        cfy += self._comp_fy
+        dt = self.dt
+        sfx = sfy = stq = skx = sky = 0.0  # sums of external fx, fy, torque, contact fx, fy
+        n_contacts, mu = 0, -1.0
+        # the state read at the end of the previous step (nothing else moves the body)
+        raw = self._raw
+        x, y, vx, vy = self._state if self._state is not None else raw.state()
+        hri = self._hri
+        viscous, rotates, static = self._has_viscous, self._rotates, self._has_static
+        if hri is not None:
+            hri.start_period()
+        for _ in range(self.control_decimation):
+            fsx, fsy = self._spring_force(x, y)
+            c = self._viscosity(x, y) if viscous else 0.0
+            fex, fey = fsx - c * vx, fsy - c * vy
+            if rotates:
+                body.torque = ctq
+            if hri is not None:  # human + vibration join (fex, fey); compliant walls: (wx, wy)
+                hx, hy, wx, wy, nw = hri.step(x, y, vx, vy, self._steps * dt)
+                fex += hx
+                fey += hy
+                nx, ny, vx, vy = raw.advance(cfx + fex + wx, cfy + fey + wy, dt)
+            else:
+                nx, ny, vx, vy = raw.advance(cfx + fex, cfy + fey, dt)
+            if static:
+                kfx, kfy, ktq, n_contacts, mu = self._contacts.read(body)
+            else:  # nothing to touch: skip the arbiter walk (hot path of contact-free scenes)
+                kfx = kfy = ktq = 0.0
+            if hri is not None:  # a compliant wall is a (frictionless) contact
+                kfx += wx
+                kfy += wy
+                n_static = n_contacts if static else 0
+                if nw and not n_static:
+                    mu = 0.0
+                n_contacts = n_static + nw
+            sfx += fex + kfx
+            sfy += fey + kfy
+            stq += ktq
+            skx += kfx
+            sky += kfy
+            self._steps += 1
+            self._path += math.hypot(nx - x, ny - y)
+            x, y = nx, ny
+            if not math.isfinite(x + y + vx + vy):
+                self._check_state(body)
+        k = 1.0 / self.control_decimation
+        self._state = (x, y, vx, vy)
+        wrench = (sfx * k, sfy * k, stq * k, skx * k, sky * k)
+        return self._output(wrench, n_contacts, mu, self._state)
+
+    def _command(self, command: Command) -> tuple[float, float, float]:
+        """The command's (fx, fy, torque) as floats, checked for shape and finiteness."""
         f_cmd, t_cmd = command.force, command.torque
         if len(f_cmd) != 2 or len(t_cmd) != 1:
             raise ValueError(
@@ -256,65 +317,7 @@ class Pymunk2D(Simulator):
                 f"non-finite command force={np.asarray(f_cmd).tolist()} "
                 f"torque={np.asarray(t_cmd).tolist()} at t={self._steps * self.dt:.3f} s"
             )
-        cfy += self._comp_fy
-        dt = self.dt
-        sfx = sfy = stq = skx = sky = 0.0  # sums of external fx, fy, torque, contact fx, fy
-        n_contacts, mu = 0, -1.0
-        # the state read at the end of the previous step (nothing else moves the body)
-        raw = self._raw
-        x, y, vx, vy = self._state if self._state is not None else raw.state()
-        hri = self._hri
-        if hri is not None:
-            hri.start_period()
-        for _ in range(self.control_decimation):
-            fsx, fsy = self._spring_force(x, y)
-            c = self._viscosity(x, y) if self._has_viscous else 0.0
-            fex, fey = fsx - c * vx, fsy - c * vy
-            if hri is not None:  # human + vibration join (fex, fey); compliant walls: (wx, wy)
-                hx, hy, wx, wy, nw = hri.step(x, y, vx, vy, self._steps * dt)
-                fex += hx
-                fey += hy
-                raw.set_force(cfx + fex + wx, cfy + fey + wy)
-            else:
-                raw.set_force(cfx + fex, cfy + fey)
-            if self._rotates:
-                body.torque = ctq
-            raw.step(dt)
-            if self._has_static:
-                kfx, kfy, ktq, n_contacts, mu = self._read_contacts(body)
-            else:  # nothing to touch: skip the arbiter walk (hot path of contact-free scenes)
-                kfx = kfy = ktq = 0.0
-            if hri is not None:  # a compliant wall is a (frictionless) contact
-                kfx += wx
-                kfy += wy
-                n_static = n_contacts if self._has_static else 0
-                if nw and not n_static:
-                    mu = 0.0
-                n_contacts = n_static + nw
-            sfx += fex + kfx
-            sfy += fey + kfy
-            stq += ktq
-            skx += kfx
-            sky += kfy
-            nx, ny, vx, vy = raw.state()
-            self._steps += 1
-            self._path += math.hypot(nx - x, ny - y)
-            x, y = nx, ny
-            if not math.isfinite(x + y + vx + vy):
-                self._check_state(body)
-        k = 1.0 / self.control_decimation
-        return self._output(
-            np.array([sfx * k, sfy * k]),
-            np.array([stq * k]),
-            np.array([skx * k, sky * k]),
-            n_contacts,
-            mu,
-            self._remember((x, y, vx, vy)),
-        )
-
-    def _remember(self, state: tuple[float, float, float, float]) -> tuple[float, ...]:
-        self._state = state
-        return state
+        return cfx, cfy, ctq
 
     def close(self) -> None:
         """Drop the pymunk space."""
@@ -370,9 +373,10 @@ class Pymunk2D(Simulator):
         space.add(body, shape)
         return space, body
 
-    def _attached(self) -> list[bool]:
-        """Whether each spring is attached at the current physics step (a function of the step
-        alone, recomputed only when the step leaves the window since the last attach/detach)."""
+    def _attached(self) -> tuple[list[bool], list[tuple[float, ...]], float, float, float]:
+        """Whether each spring is attached at the current physics step, the attached springs,
+        the step window this holds for and the attached count (a function of the step alone,
+        recomputed only when the step leaves the window since the last attach/detach)."""
         n = self._steps
         if not self._att[2] <= n < self._att[3]:
             on = [a <= n < d for a, d in self._spring_steps]
@@ -382,16 +386,14 @@ class Pymunk2D(Simulator):
                 [s for s, o in zip(self._springs, on, strict=True) if o],
                 max((e for e in edges if e <= n), default=-math.inf),
                 min((e for e in edges if e > n), default=math.inf),
+                float(sum(on)),
             )
-        return self._att[0]
+        return self._att
 
     def _spring_force(self, x: float, y: float) -> tuple[float, float]:
         """Sum of ``-k (|d| - L0) d/|d|`` over the attached springs; zero where ``|d| = 0``."""
         fx = fy = 0.0
-        springs = self._springs
-        if self._scheduled_springs:
-            self._attached()
-            springs = self._att[1]
+        springs = self._attached()[1] if self._scheduled_springs else self._springs
         for axp, ayp, k, l0 in springs:
             dx, dy = x - axp, y - ayp
             if l0 == 0.0:
@@ -406,66 +408,16 @@ class Pymunk2D(Simulator):
         return fx, fy
 
     def _viscosity(self, x: float, y: float) -> float:
-        """Sum of the coefficients [N s/m] of the viscous fields containing (x, y) now."""
+        """Sum of the coefficients [N s/m] of the viscous fields containing (x, y) now (the EE
+        is at (x, y) for the whole physics step, so one step's value is kept for reuse)."""
+        if self._visc[0] == self._steps:
+            return self._visc[1]
         c = 0.0
         for field_ in self.scene.viscous:
             if field_.region is None or field_.region.contains(x, y):
                 c += field_.schedule.coefficient(self._steps, self._path)
+        self._visc = (self._steps, c)
         return c
-
-    def _read_contacts(self, body: pymunk.Body) -> tuple[float, float, float, int, float]:
-        """Contact force, torque about the EE centre, point count and touched friction."""
-        self._acc_contact = [0.0, 0.0, 0.0, 0.0, -1.0, -1.0]
-        body.each_arbiter(self._visit_arbiter)
-        fx, fy, tq, n, mu, _ = self._acc_contact
-        return fx, fy, tq, int(n), mu
-
-    def _visit_arbiter(self, arb: pymunk.Arbiter) -> None:
-        """Accumulate one arbiter (called by ``Body.each_arbiter`` with the EE as shape 0)."""
-        acc = self._acc_contact
-        inv_dt = 1.0 / self.dt
-        imp = arb.total_impulse  # impulse applied to the EE during the last step
-        fx, fy = imp.x * inv_dt, imp.y * inv_dt
-        pts = arb.contact_point_set.points
-        body = self._body
-        assert body is not None
-        px, py = body.position
-        tq = self._per_contact_torque(arb, inv_dt) if self.scene.ee.rotate else None
-        if tq is None and pts:
-            # Rotation locked: the solver's split of the impulse between the points of a flat
-            # face is arbitrary, so take a uniform pressure (force at the points' centroid).
-            cx = sum(p.point_a.x + p.point_b.x for p in pts) / (2 * len(pts))
-            cy = sum(p.point_a.y + p.point_b.y for p in pts) / (2 * len(pts))
-            tq = (cx - px) * fy - (cy - py) * fx
-        acc[0] += fx
-        acc[1] += fy
-        acc[2] += tq or 0.0
-        acc[3] += len(pts)
-        if abs(imp.x) + abs(imp.y) > acc[5]:
-            acc[5] = abs(imp.x) + abs(imp.y)
-            acc[4] = float(arb.friction)  # = surface friction x EE friction 1.0
-
-    @staticmethod
-    def _per_contact_torque(arb: pymunk.Arbiter, inv_dt: float) -> float | None:
-        """Exact contact torque from Chipmunk's per-point impulses, or None if unavailable.
-
-        pymunk 7 has no public per-point impulse, so this reads the cffi ``cpArbiter`` struct
-        (``contacts[i].jnAcc/jtAcc``, arms ``r1``/``r2``). During ``each_arbiter`` the flag
-        ``swapped`` is set when the EE is Chipmunk's ``body_b``, which receives ``+j``.
-        """
-        try:
-            a = arb._arbiter  # noqa: SLF001 - see docstring
-            nx, ny, ee_is_b = a.n.x, a.n.y, bool(a.swapped)
-            tq = 0.0
-            for i in range(a.count):
-                c = a.contacts[i]
-                jx = nx * c.jnAcc - ny * c.jtAcc
-                jy = ny * c.jnAcc + nx * c.jtAcc
-                r = c.r2 if ee_is_b else c.r1
-                tq += r.x * jy - r.y * jx
-        except (AttributeError, TypeError):  # pragma: no cover - pymunk internals changed
-            return None
-        return (tq if ee_is_b else -tq) * inv_dt
 
     def _check_state(self, body: pymunk.Body) -> None:
         x, y = body.position
@@ -478,16 +430,16 @@ class Pymunk2D(Simulator):
 
     def _output(
         self,
-        f_true: np.ndarray,
-        t_true: np.ndarray,
-        f_contact: np.ndarray,
+        wrench: tuple[float, float, float, float, float],
         n_contacts: int,
         mu: float,
-        state: tuple[float, float, float, float] | None = None,
+        state: tuple[float, ...] | None = None,
     ) -> tuple[Observation, StepInfo]:
-        """Observation and truth for the current state; ``state`` = (x, y, vx, vy) if known.
+        """Observation and truth for the current state; ``state`` = (x, y, vx, vy) if known,
+        ``wrench`` = the true external (fx, fy, torque) and its contact part (fx, fy).
 
-        The wrench arrays passed in are fresh and not kept, so they are not copied again.
+        Every array is a view of one fresh buffer made here (one allocation instead of one
+        per array): the observation holds values, never the simulator's state.
         """
         body = self._body
         assert body is not None
@@ -496,30 +448,23 @@ class Pymunk2D(Simulator):
         else:
             x, y, vx, vy = state
         angle, omega = (body.angle, body.angular_velocity) if self._rotates else (self._angle0, 0.0)
-        f_meas, t_meas = self.sensor.measure(f_true, t_true)
+        fx, fy, tq, kx, ky = wrench
+        if self._ideal_sensor:  # measured = true, as FTSensor.measure gives it (a copy)
+            b = np.array([x, y, angle, vx, vy, omega, fx, fy, tq, kx, ky, fx, fy, tq])
+            f_meas, t_meas = b[_MEAS_F], b[_MEAS_T]
+        else:
+            b = np.array([x, y, angle, vx, vy, omega, fx, fy, tq, kx, ky])
+            f_meas, t_meas = self.sensor.measure(b[_TRUE_F], b[_TRUE_T])
         obs = Observation(
-            t=self._steps * self.dt,
-            position=np.array([x, y]),
-            orientation=np.array([angle]),
-            lin_vel=np.array([vx, vy]),
-            ang_vel=np.array([omega]),
-            force=f_meas,
-            torque=t_meas,
+            self._steps * self.dt, b[_POS], b[_ANGLE], b[_VEL], b[_OMEGA], f_meas, t_meas
         )
         extra = {
-            "viscosity_Nspm": self._viscosity(x, y),
+            "viscosity_Nspm": self._viscosity(x, y) if self._has_viscous else 0.0,
             "surface_friction": mu if n_contacts > 0 else -1.0,
             "contact": 1.0 if n_contacts > 0 else 0.0,
         }
         if self._scheduled_springs:  # truth of the environment changes (metrics only)
-            extra["springs_attached"] = float(sum(self._attached()))
+            extra["springs_attached"] = self._attached()[4]
         if self._hri is not None:
             extra.update(self._hri.extra())
-        info = StepInfo(
-            true_force=f_true,
-            true_torque=t_true,
-            contact_force=f_contact,
-            n_contacts=n_contacts,
-            extra=extra,
-        )
-        return obs, info
+        return obs, StepInfo(b[_TRUE_F], b[_TRUE_T], b[_CONTACT_F], n_contacts, extra)

@@ -174,6 +174,11 @@ class FTSensor:
         self._held: tuple[np.ndarray, np.ndarray] | None = None
         self._hold_left = 0
 
+    @property
+    def ideal(self) -> bool:
+        """True for a sensor without noise, bias and faults: it measures the true wrench."""
+        return self._ideal
+
     def reset(self, rng: np.random.Generator) -> None:
         """Use ``rng`` for all later noise draws (the simulator seeds it at its reset)."""
         self._rng = rng
