@@ -207,3 +207,32 @@ def test_compiled_torque_law_matches_the_numpy_law(robot: Robot) -> None:
         worst = max(worst, float(np.abs(tau - ref).max() / np.abs(ref).max()))
     print(f"\n[pinocchio] compiled vs numpy torque law, max relative error {worst:.2g}")
     assert worst < 1e-9
+
+
+def test_the_robot_without_visual_meshes_has_the_same_dynamics(robot: Robot) -> None:
+    """``robot_urdf(visuals=False)`` (what a DIRECT-mode simulator loads: the visual meshes
+    made ``loadURDF`` ~1 s slower per trial) has no ``<visual>``, and PyBullet gives its links
+    the same masses, inertias and frames as the full robot's."""
+    import pybullet as p
+
+    cfg = PyBullet3DConfig()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = robot_urdf(cfg.tool, tmp, visuals=False)
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read()
+        cid = p.connect(p.DIRECT)
+        try:
+            body = p.loadURDF(path, [0, 0, 0], useFixedBase=True, physicsClientId=cid)
+            n = p.getNumJoints(body, physicsClientId=cid)
+            assert n == p.getNumJoints(robot.body, physicsClientId=robot.cid)
+            for j in range(n):
+                lean = p.getDynamicsInfo(body, j, physicsClientId=cid)
+                full = p.getDynamicsInfo(robot.body, j, physicsClientId=robot.cid)
+                for k in (0, 2, 3, 4):  # mass, principal inertia, inertial position, frame
+                    assert lean[k] == full[k], (j, k)
+                assert p.getCollisionShapeData(body, j, physicsClientId=cid) == (
+                    p.getCollisionShapeData(robot.body, j, physicsClientId=robot.cid)
+                ), j
+        finally:
+            p.disconnect(physicsClientId=cid)
+    assert "<visual" not in text and "<collision" in text

@@ -98,8 +98,13 @@ def orientation_error(q_des: Sequence[float], q: Sequence[float]) -> np.ndarray:
 # --------------------------------------------------------------------------- robot
 
 
-def robot_urdf(tool: ToolSpec, directory: str) -> str:
-    """Write panda.urdf without fingers and with the block tool; return its path."""
+def robot_urdf(tool: ToolSpec, directory: str, visuals: bool = True) -> str:
+    """Write panda.urdf without fingers and with the block tool; return its path.
+
+    ``visuals=False`` leaves out every ``<visual>`` element: the ~9 MB of visual meshes are
+    what made ``loadURDF`` slow (~0.1-1.5 s per trial, depending on load), and nothing but
+    rendering reads them (inertias come from the ``<inertial>`` masses and the collision
+    shapes, contacts from the collision shapes)."""
     import pybullet_data
 
     src_dir = os.path.join(pybullet_data.getDataPath(), "franka_panda")
@@ -113,6 +118,10 @@ def robot_urdf(tool: ToolSpec, directory: str) -> str:
             child = el.find("child")
             if child is not None and child.get("link") in drop:
                 root.remove(el)
+    if not visuals:
+        for link in root.iter("link"):
+            for vis in link.findall("visual"):
+                link.remove(vis)
     for mesh in root.iter("mesh"):
         fn = mesh.get("filename", "")
         if fn.startswith("package://"):
@@ -126,9 +135,14 @@ def robot_urdf(tool: ToolSpec, directory: str) -> str:
         ET.fromstring(
             f'<link name="ccm_tool"><inertial>{origin}<mass value="{m}"/>'
             f'<inertia ixx="{ixx}" ixy="0" ixz="0" iyy="{iyy}" iyz="0" izz="{izz}"/>'
-            f"</inertial><visual>{origin}{box}"
-            '<material name="ccm_tool"><color rgba="0.9 0.4 0.1 1"/></material></visual>'
-            f"<collision>{origin}{box}</collision></link>"
+            "</inertial>"
+            + (
+                f"<visual>{origin}{box}"
+                '<material name="ccm_tool"><color rgba="0.9 0.4 0.1 1"/></material></visual>'
+                if visuals
+                else ""
+            )
+            + f"<collision>{origin}{box}</collision></link>"
         )
     )
     root.append(
@@ -154,9 +168,8 @@ def load_robot(p: Any, cid: int, config: PyBullet3DConfig) -> tuple[int, int]:
     """
     tmp = tempfile.mkdtemp(prefix="ccm_panda_")
     try:
-        robot = p.loadURDF(
-            robot_urdf(config.tool, tmp), [0, 0, 0], useFixedBase=True, physicsClientId=cid
-        )
+        urdf = robot_urdf(config.tool, tmp, visuals=config.gui)  # meshes only to look at
+        robot = p.loadURDF(urdf, [0, 0, 0], useFixedBase=True, physicsClientId=cid)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     names = {}
