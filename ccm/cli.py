@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 import ccm
 from ccm import jobdir, user_configs
+from ccm.user_configs import config_dir, group_options  # noqa: F401 - also importable from here
 
 jobdir.register()  # hydra.sweep.subdir names jobs through it, here and in launcher workers
 
@@ -50,22 +51,6 @@ Set HYDRA_FULL_ERROR=1 (or pass --verbose to `run`) for full tracebacks.
 """
 
 
-def config_dir() -> Path:
-    """The config directory: shipped in the wheel as ``ccm/_configs``, or ``configs/`` in a
-    source checkout (editable install)."""
-    pkg = Path(ccm.__file__).resolve().parent
-    for candidate in (pkg / "_configs", pkg.parent / "configs"):
-        if (candidate / "config.yaml").is_file():
-            return candidate
-    raise FileNotFoundError(f"ccm configs not found next to {pkg}")
-
-
-def group_options(group: str, dirs: Sequence[Path] = ()) -> list[str]:
-    """Option names of a config group (its YAML files), in the user's config directories
-    ``dirs`` (:mod:`ccm.user_configs`) and the package's."""
-    return user_configs.options(group, dirs, config_dir())
-
-
 def describe(group: str, option: str, dirs: Sequence[Path] = ()) -> str:
     """The ``description`` field of a group option, or its first comment line; a file whose
     top level is not a mapping raises ConfigError naming it."""
@@ -73,7 +58,7 @@ def describe(group: str, option: str, dirs: Sequence[Path] = ()) -> str:
 
     from ccm.errors import ConfigError
 
-    path = user_configs.option_file(group, option, dirs, config_dir())
+    path = user_configs.option_file(group, option, dirs, user_configs.config_dir())
     node = OmegaConf.load(path)
     if not isinstance(node, DictConfig):
         raise ConfigError(str(path), "the top level is a list; a config is a mapping of keys")
@@ -103,7 +88,7 @@ def cmd_list(args: Sequence[str] = ()) -> int:
     broken = 0
     for group in ("experiment", "task", "controller", "sim"):
         print(f"{group}:")
-        for opt in group_options(group, dirs):
+        for opt in user_configs.group_options(group, dirs):
             try:
                 text = describe(group, opt, dirs)
             except (yaml.YAMLError, ConfigError) as exc:  # named, the rest still listed
@@ -160,8 +145,8 @@ def _combos(overrides: Sequence[str], multirun: bool) -> list[list[str]]:
 def _check_groups(overrides: Sequence[str], dirs: Sequence[Path] = ()) -> str | None:
     for ov in overrides:
         key, _, value = ov.lstrip("+~").partition("=")
-        if key in GROUPS and value not in group_options(key, dirs):
-            allowed = ", ".join(group_options(key, dirs))
+        if key in GROUPS and value not in user_configs.group_options(key, dirs):
+            allowed = ", ".join(user_configs.group_options(key, dirs))
             return f"{key}={value}: unknown option; allowed: {allowed}"
     return None
 
@@ -178,7 +163,7 @@ def precheck(overrides: Sequence[str], multirun: bool, dirs: Sequence[Path] = ()
     except (HydraException, ValueError) as exc:
         return _one_line(exc)
     planned: set[tuple[str, ...]] = set()
-    with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="ccm"):
+    with initialize_config_dir(str(user_configs.config_dir()), version_base="1.3", job_name="ccm"):
         for combo in combos:
             bad = _check_groups(combo, dirs)
             if bad:
@@ -284,7 +269,7 @@ def _compose_extra(  # noqa: ANN202
     from hydra import compose
 
     if dirs is None:
-        dirs = user_configs.job_dirs(config_dir())
+        dirs = user_configs.job_dirs(user_configs.config_dir())
     bad = _check_groups(extra, dirs)
     if bad:
         from ccm.errors import ConfigError
@@ -356,10 +341,11 @@ def _run_locked(cfg: DictConfig, out_dir: Path, task_overrides: list[str], multi
     to summary.json (status ``failed`` / ``interrupted``) before it ends the run."""
     from threadpoolctl import threadpool_limits
 
+    from ccm.analyses import run
     from ccm.errors import ConfigError, SimulationDiverged
     from ccm.interrupts import RunInterrupted, record_interrupt
     from ccm.records import write_json_atomic
-    from ccm.runner import failed_summary, run_experiment
+    from ccm.runner import failed_summary
 
     finished: list[dict] = []  # the trial loop's records, kept if the run is interrupted
     try:
@@ -370,7 +356,7 @@ def _run_locked(cfg: DictConfig, out_dir: Path, task_overrides: list[str], multi
         import scipy.linalg  # noqa: F401
 
         with threadpool_limits(limits=int(cfg.get("blas_threads") or 1)):
-            summary = run_experiment(
+            summary = run(
                 cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir,
                 finished=finished,
             )  # fmt: skip
@@ -453,7 +439,8 @@ def _run_app(args: list[str]) -> int:
         if err:
             return _fail(err, EXIT_CONFIG)
 
-    app = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_job)
+    config_path = str(user_configs.config_dir())
+    app = hydra.main(version_base="1.3", config_path=config_path, config_name="config")(_job)
     saved = sys.argv
     sys.argv = ["ccm run", *args]
     from ccm import sweep_check

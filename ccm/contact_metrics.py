@@ -108,6 +108,7 @@ from typing import Any
 import numpy as np
 
 from ccm.errors import ConfigError, check_finite, check_nonneg, check_positive
+from ccm.filters import derivatives
 
 __all__ = ["contact_metrics", "scored_contacts"]
 
@@ -165,8 +166,6 @@ def contact_metrics(
     log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]
 ) -> dict[str, float | None]:
     """Impact force, impact acceleration, contact times and transition time for one trial."""
-    from ccm.metrics import derivatives  # here: ccm.metrics imports this module
-
     rise = check_nonneg("metrics.impact_onset_N", params.get("impact_onset_N", 1.0))
     window = check_nonneg("metrics.impact_window_s", params.get("impact_window_s", 0.05))
     f_target = check_positive(
@@ -306,8 +305,6 @@ def _patch_metrics(
     log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]
 ) -> dict[str, float | None]:
     """The impact-less (patch) metrics of the module docstring."""
-    from ccm.metrics import derivatives
-
     near = check_positive("metrics.patch_window_m", params.get("patch_window_m", 0.03))
     contacts = [c for c in params.get("task_contacts") or () if c.get("kind") == "impactless"]
     if not contacts:

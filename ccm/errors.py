@@ -166,13 +166,36 @@ def check_bounds(key: str, value: Any) -> tuple[float, float]:
     return lo, hi
 
 
+def to_plain(node: Any, key: str | None = None) -> Any:
+    """An OmegaConf node as plain Python containers (interpolations resolved); anything else
+    as it is. The one converter from config to data.
+
+    With ``key`` the result must be a mapping: ``None`` gives ``{}``, a mapping a new
+    ``dict``, and anything else, or an interpolation that does not resolve, a ConfigError
+    naming ``key``.
+    """
+    from omegaconf import OmegaConf
+    from omegaconf.errors import OmegaConfBaseException
+
+    if OmegaConf.is_config(node):
+        try:
+            node = OmegaConf.to_container(node, resolve=True)
+        except OmegaConfBaseException as err:
+            if key is None:
+                raise
+            raise ConfigError(key, str(err).splitlines()[0]) from None
+    if key is None:
+        return node
+    if node is None:
+        return {}
+    if not isinstance(node, Mapping):
+        raise ConfigError(key, f"must be a mapping, got {type(node).__name__}")
+    return dict(node)
+
+
 def config_block(cfg: Any, name: str, allowed: Sequence[str]) -> dict[str, Any]:
     """The root config's ``name`` block as a plain dict (interpolations resolved), with
     unknown keys rejected (one line naming ``<name>.<key>``)."""
-    from omegaconf import OmegaConf
-
-    block = OmegaConf.to_container(cfg.get(name) or {}, resolve=True)
-    if not isinstance(block, dict):
-        raise ConfigError(name, f"must be a mapping, got {type(block).__name__}")
+    block = to_plain(cfg.get(name), name)
     check_keys(name, block, allowed)
     return block

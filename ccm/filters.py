@@ -25,6 +25,34 @@ def lowpass_sequence(x: np.ndarray, alpha: float) -> np.ndarray:
     return lowpass_rows(rows, float(alpha)).reshape(x.shape)
 
 
+def lowpass(x: np.ndarray, dt: float, cutoff_hz: float) -> np.ndarray:
+    """Causal first-order low-pass along axis 0: y_k = y_{k-1} + α (x_k − y_{k-1}).
+
+    α = dt / (dt + 1/(2π f_c)). One documented filter, used for every condition, stands in for
+    the velocity filtering a robot applies to encoder-derived velocities.
+    """
+    return lowpass_sequence(x, first_order_alpha(dt, cutoff_hz))
+
+
+def derivatives(vel: np.ndarray, dt: float, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Acceleration and jerk from a velocity series: low-pass velocity, then finite differences.
+
+    Args:
+        vel: (T, n) velocities [m/s] sampled every ``dt``.
+        cutoff_hz: low-pass cut-off applied to velocity and again to acceleration.
+
+    Returns:
+        acc (T, n) [m/s²] and jerk (T, n) [m/s³]; the first sample of each is 0.
+    """
+    v = lowpass(vel, dt, cutoff_hz)
+    acc = np.zeros_like(v)
+    acc[1:] = np.diff(v, axis=0) / dt
+    acc = lowpass(acc, dt, cutoff_hz)
+    jerk = np.zeros_like(acc)
+    jerk[1:] = np.diff(acc, axis=0) / dt
+    return acc, jerk
+
+
 def fft_split(x: np.ndarray, dt: float, f_hz: float) -> tuple[np.ndarray, np.ndarray]:
     """Zero-phase split of ``x`` (1-D) into the parts below and above ``f_hz`` (FFT mask).
 

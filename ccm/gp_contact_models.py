@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from ccm.errors import (
     ConfigError,
@@ -53,7 +53,9 @@ from ccm.errors import (
     check_nonneg,
     check_positive,
     config_block,
+    to_plain,
 )
+from ccm.plots_gp_contact import write_gp_contact_figure
 from ccm.records import write_atomic, write_json_atomic
 from ccm.timeseries import (
     FLOAT32_BITS,
@@ -146,6 +148,21 @@ def _control_dt(cfg: DictConfig) -> float:
 def case_name(guidance: str, position: str, stiffness: float) -> str:
     """``<guidance>_<position>_<stiffness in N/mm>``, e.g. ``autonomous_fixed_45``."""
     return f"{guidance}_{position}_{stiffness / 1000.0:g}"
+
+
+def fig5_panels(ref_k: float, stiffnesses: list[float]) -> list[tuple[str, list[tuple[str, str]]]]:
+    """(title, [(case, label), ...]) for Fig. 5 (a), (b), (c)."""
+    ref = f"{ref_k / 1e3:g} N/mm"
+    return [
+        (f"(a) human-guided vs autonomous, fixed position, {ref}",
+         [(case_name("autonomous", "fixed", ref_k), "autonomous"),
+          (case_name("human", "fixed", ref_k), "human-guided")]),
+        (f"(b) fixed vs varying contact position, autonomous, {ref}",
+         [(case_name("autonomous", "fixed", ref_k), "fixed position"),
+          (case_name("autonomous", "varying", ref_k), "varying position")]),
+        ("(c) environment stiffness, autonomous, fixed position",
+         [(case_name("autonomous", "fixed", k), f"{k / 1e3:g} N/mm") for k in stiffnesses]),
+    ]  # fmt: skip
 
 
 # ----------------------------------------------------------------------------- simulation
@@ -288,7 +305,7 @@ def run_gp_contact_models(cfg: DictConfig, compose: Callable, out_dir: Path) -> 
     # the GP restarts; the draws never depend on which cases are run
     demo_seeds = root.integers(0, 2**31 - 1, size=s["demos"])
     gp_seed = int(root.integers(0, 2**31 - 1))
-    sim_cfg = OmegaConf.to_container(cfg.sim, resolve=True)
+    sim_cfg = to_plain(cfg.sim)
     conditions: dict[str, dict[str, Any]] = {}
     trials: list[dict[str, Any]] = []
     curves: dict[str, dict[str, Any]] = {}
@@ -317,11 +334,11 @@ def run_gp_contact_models(cfg: DictConfig, compose: Callable, out_dir: Path) -> 
                         write_timeseries(trial_path(out_dir, name, j), columns, bits)
     write_atomic(out_dir / "gp_contact_models.md", markdown_table(conditions))
     if cfg.experiment.get("figures", True):
-        from ccm.plots_gp_contact import write_gp_contact_figure
-
-        write_gp_contact_figure(
-            out_dir / "figures" / "gp_contact_models.png", curves, s["reference_stiffness_Npm"]
+        stiffnesses = sorted(
+            {float(n.rsplit("_", 1)[1]) * 1e3 for n in curves if n.startswith("autonomous_fixed_")}
         )
+        panels = fig5_panels(s["reference_stiffness_Npm"], stiffnesses)
+        write_gp_contact_figure(out_dir / "figures" / "gp_contact_models.png", curves, panels)
     summary = {"experiment": str(cfg.experiment.name), "status": "ok", "seed": seed,
                "conditions": conditions, "trials": trials}  # fmt: skip
     info = {"wall_time_s": time.perf_counter() - t0, "case_s": timing}

@@ -10,9 +10,10 @@ import numpy as np
 from ccm.adaptation_metrics import measured_force_norm, prediction_skill, stiffness_adaptation
 from ccm.contact_metrics import contact_metrics
 from ccm.errors import ConfigError, check_int_positive, check_positive
-from ccm.filters import first_order_alpha, lowpass_sequence
+from ccm.filters import derivatives
 from ccm.mode_metrics import in_contact_steps, mode_metrics, true_transition_steps
 from ccm.mpc_metrics import gp_mpc_metrics
+from ccm.protocols import Metric
 
 #: metrics every trial reports (issue #2)
 BASE_METRICS = (
@@ -24,34 +25,6 @@ BASE_METRICS = (
     "completion_time_s",
     "mean_stiffness_Npm",
 )
-
-
-def lowpass(x: np.ndarray, dt: float, cutoff_hz: float) -> np.ndarray:
-    """Causal first-order low-pass along axis 0: y_k = y_{k-1} + α (x_k − y_{k-1}).
-
-    α = dt / (dt + 1/(2π f_c)). One documented filter, used for every condition, stands in for
-    the velocity filtering a robot applies to encoder-derived velocities.
-    """
-    return lowpass_sequence(x, first_order_alpha(dt, cutoff_hz))
-
-
-def derivatives(vel: np.ndarray, dt: float, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Acceleration and jerk from a velocity series: low-pass velocity, then finite differences.
-
-    Args:
-        vel: (T, n) velocities [m/s] sampled every ``dt``.
-        cutoff_hz: low-pass cut-off applied to velocity and again to acceleration.
-
-    Returns:
-        acc (T, n) [m/s²] and jerk (T, n) [m/s³]; the first sample of each is 0.
-    """
-    v = lowpass(vel, dt, cutoff_hz)
-    acc = np.zeros_like(v)
-    acc[1:] = np.diff(v, axis=0) / dt
-    acc = lowpass(acc, dt, cutoff_hz)
-    jerk = np.zeros_like(acc)
-    jerk[1:] = np.diff(acc, axis=0) / dt
-    return acc, jerk
 
 
 def motion_error(position: np.ndarray, target: np.ndarray, force_dir: np.ndarray) -> np.ndarray:
@@ -274,7 +247,7 @@ def error_spike_metrics(
 
 
 #: name -> function(log, dim, params) -> metrics; chosen per experiment in experiment.metrics
-EXTRA_METRICS = {
+EXTRA_METRICS: dict[str, Metric] = {
     "force_prediction": force_prediction_metrics,
     "lag": lag_metrics,
     "modes": mode_metrics,

@@ -26,6 +26,7 @@ from pathlib import Path
 
 from ccm.config_check import check_output_dir
 from ccm.records import write_json_atomic
+from ccm.user_configs import group_options
 
 # the paper experiments, longest first (job-seconds measured 2026-12-01 on 2 cores, for
 # scheduling only): h3 5 x 380, h1_adaptive_control 10 x ~95, mpc_contact 5 x 100 (each of its
@@ -113,7 +114,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    from ccm.cli import group_options
 
     if args.launcher not in group_options("hydra/launcher"):
         allowed = ", ".join(group_options("hydra/launcher"))

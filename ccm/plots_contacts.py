@@ -21,9 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from ccm.metrics import derivatives
-from ccm.plots import _axes_arrays
+from ccm.filters import derivatives
 from ccm.plots_modes import shade_runs
+from ccm.records import axes_columns
 
 Log = Mapping[str, np.ndarray]
 
@@ -47,10 +47,10 @@ def _trial_label(name: str, trials: Sequence[Mapping[str, Any]], which: int) -> 
 def _column(axs: Sequence[Any], log: Log, dim: int, lowpass_hz: float, legend: bool) -> None:
     """Speed, acceleration and force of one trial, with transition spans and events."""
     t = np.asarray(log["t"], dtype=float)
-    vel = _axes_arrays(log, "vel", dim)
+    vel = axes_columns(log, "vel", dim)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     acc, _ = derivatives(vel, dt, lowpass_hz)
-    f_true = _axes_arrays(log, "true_force", dim)
+    f_true = axes_columns(log, "true_force", dim)
     series = (
         (np.linalg.norm(vel, axis=1), "tab:blue"),
         (np.linalg.norm(acc, axis=1), "tab:orange"),

@@ -2,48 +2,32 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ccm.gp_contact_models import case_name
 from ccm.records import save_figure
 
 
-def _panels(ref_k: float, stiffnesses: list[float]) -> list[tuple[str, list[tuple[str, str]]]]:
-    """(title, [(case, label), ...]) for Fig. 5 (a), (b), (c)."""
-    ref = f"{ref_k / 1e3:g} N/mm"
-    return [
-        (f"(a) human-guided vs autonomous, fixed position, {ref}",
-         [(case_name("autonomous", "fixed", ref_k), "autonomous"),
-          (case_name("human", "fixed", ref_k), "human-guided")]),
-        (f"(b) fixed vs varying contact position, autonomous, {ref}",
-         [(case_name("autonomous", "fixed", ref_k), "fixed position"),
-          (case_name("autonomous", "varying", ref_k), "varying position")]),
-        ("(c) environment stiffness, autonomous, fixed position",
-         [(case_name("autonomous", "fixed", k), f"{k / 1e3:g} N/mm") for k in stiffnesses]),
-    ]  # fmt: skip
-
-
 def write_gp_contact_figure(
-    path: Path, curves: Mapping[str, Mapping[str, Any]], ref_k: float
+    path: Path,
+    curves: Mapping[str, Mapping[str, Any]],
+    panels: Sequence[tuple[str, Sequence[tuple[str, str]]]],
 ) -> None:
-    """Seed B Fig. 5 (a), (b), (c) in three columns; top: the whole demonstrations, bottom:
-    zoomed on the contact. Data as dots, GP mean ± 2σ (predictive: latent and noise), true
-    contact positions dashed (one per demonstration for a varying wall)."""
+    """Seed B Fig. 5 (a), (b), (c) in three columns, ``panels`` = (title, [(case, label), ...])
+    each; top: the whole demonstrations, bottom: zoomed on the contact. Data as dots, GP mean
+    ± 2σ (predictive: latent and noise), true contact positions dashed (one per demonstration
+    for a varying wall)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    stiffnesses = sorted(
-        {float(n.rsplit("_", 1)[1]) * 1e3 for n in curves if n.startswith("autonomous_fixed_")}
-    )
     fig, axs = plt.subplots(2, 3, figsize=(16, 8.5))
-    for col, (title, cases) in enumerate(_panels(ref_k, stiffnesses)):
+    for col, (title, cases) in enumerate(panels):
         present = [(curves[c], lab) for c, lab in cases if c in curves]
         for row in (0, 1):
             ax = axs[row, col]

@@ -20,7 +20,7 @@ import numpy as np
 
 from ccm.metrics import motion_error
 from ccm.mode_metrics import NEW, decisions, in_contact_steps, mode_ids, true_transition_steps
-from ccm.plots import _axes_arrays
+from ccm.records import axes_columns
 
 Log = Mapping[str, np.ndarray]
 
@@ -106,9 +106,9 @@ def _stiffness_error_panels(ax_k: Any, ax_e: Any, label: str, log: Log, dim: int
     if "stiffness_Npm" in log:
         ax_k.plot(t, log["stiffness_Npm"], color="tab:blue", lw=1.2, label="K_p")
     err = motion_error(
-        _axes_arrays(log, "pos", dim),
-        _axes_arrays(log, "target_pos", dim),
-        _axes_arrays(log, "force_dir", dim),
+        axes_columns(log, "pos", dim),
+        axes_columns(log, "target_pos", dim),
+        axes_columns(log, "force_dir", dim),
     )
     ax_e.plot(t, 1000.0 * err, color="tab:purple", lw=1.0, label="tracking error")
     _mark(ax_k, log, legend=True)

@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from ccm.metrics import derivatives
-from ccm.plots import _axes_arrays
+from ccm.filters import derivatives
+from ccm.records import axes_columns
 
 Log = Mapping[str, np.ndarray]
 HALF_WINDOW_S = 0.5  # s either side of the crossing (seed A Figs 19-20 show ~1 s sections)
@@ -72,13 +72,13 @@ def _trace(
     color: str, style: str,
 ) -> None:  # fmt: skip
     t = np.asarray(log["t"], dtype=float)
-    pos = _axes_arrays(log, "pos", dim)
+    pos = axes_columns(log, "pos", dim)
     k = int(np.argmin(np.linalg.norm(pos - p[:dim], axis=1)))
     sel = np.abs(t - t[k]) <= HALF_WINDOW_S
-    vel = _axes_arrays(log, "vel", dim)
+    vel = axes_columns(log, "vel", dim)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     acc, _ = derivatives(vel, dt, lowpass_hz)
-    f_h = _axes_arrays(log, "true_force", dim)[:, :-1]  # the last axis is vertical
+    f_h = axes_columns(log, "true_force", dim)[:, :-1]  # the last axis is vertical
     rel = t[sel] - t[k]
     alpha = np.asarray(log.get("transition_alpha", np.zeros(len(t))))[sel] > 0.0
     series = [np.linalg.norm(y[sel], axis=1) for y in (vel, acc, f_h)]

@@ -82,6 +82,12 @@ def write_json_atomic(path: Path, data: Any, compact: bool = False) -> None:
     write_atomic(path, text + "\n")
 
 
+def axes_columns(log: Mapping[str, np.ndarray], prefix: str, dim: int) -> np.ndarray:
+    """The columns ``<prefix>_x, <prefix>_y[, <prefix>_z]`` of a trial's log as a (T, dim)
+    array (the column names :class:`TrialRecorder` writes)."""
+    return np.column_stack([log[f"{prefix}_{a}"] for a in AXES[:dim]])
+
+
 class TrialRecorder:
     """Per-step log of one trial: target, state, wrench, command, signals, truth.
 

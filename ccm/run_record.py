@@ -34,6 +34,7 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
+from ccm.errors import to_plain
 from ccm.records import write_atomic
 
 LOCK_NAME = ".lock"
@@ -55,7 +56,7 @@ def config_digest(cfg: DictConfig) -> str:
     """SHA-256 of the composed config, resolved (``hydra`` excluded: the job config), as JSON
     with sorted keys: the same config gives the same hash in any directory and process."""
     try:
-        data: Any = OmegaConf.to_container(cfg, resolve=True)
+        data: Any = to_plain(cfg)
         text = json.dumps(data, sort_keys=True, separators=(",", ":"), default=str)
     except Exception:  # an unresolvable interpolation fails the run later; hash the text now
         text = OmegaConf.to_yaml(cfg)

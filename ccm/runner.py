@@ -17,7 +17,7 @@ from __future__ import annotations
 import gc
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -38,6 +38,7 @@ from ccm.errors import (
     check_int_positive,
     check_nonneg,
     check_positive,
+    to_plain,
 )
 from ccm.learned_state import load_states, save_states
 from ccm.metrics import (
@@ -63,15 +64,9 @@ from ccm.types import Observation, StepInfo
 #: compose(extra_overrides) -> config; provided by the CLI (Hydra compose API)
 ComposeFn = Callable[[Sequence[str]], DictConfig]
 
-#: experiment.kind -> "module:function(cfg, compose, out_dir) -> summary" for analyses that
-#: are not the condition x phase x trial loop
-ANALYSES = {
-    "h3": "ccm.h3:run_h3",  # seed A §4.4: offline SVM + GP baseline vs incremental models
-    "mpc_convexity": "ccm.mpc_convexity:run_convexity",  # seed B §5.2, Fig. 4
-    "gp_contact_models": "ccm.gp_contact_models:run_gp_contact_models",  # seed B §5.3, Fig. 5
-    # issue #16: forward-model skill against the prediction horizon (seed A §3.1, Eq. 6)
-    "forward_model_horizon": "ccm.forward_model_study:run_study",
-}
+#: the experiment.kind values that name an analysis (:data:`ccm.analyses.ANALYSES`), not the
+#: condition × phase × trial loop this module runs
+ANALYSIS_KINDS = ("h3", "mpc_convexity", "gp_contact_models", "forward_model_horizon")
 
 
 @dataclass
@@ -110,20 +105,13 @@ class Components:
 Plan = list[tuple[Condition, list[tuple[Phase, Components]]]]
 
 
-def plain(node: Any) -> Any:
-    """OmegaConf node -> plain Python containers (interpolations resolved)."""
-    if isinstance(node, DictConfig) or OmegaConf.is_config(node):
-        return OmegaConf.to_container(node, resolve=True)
-    return node
-
-
 def resolve_conditions(cfg: DictConfig, compose: ComposeFn) -> list[Condition]:
     """Expand ``experiment.conditions`` into composed configs (or the run config alone).
 
     A condition set to null is left out: an experiment built on another (its defaults list)
     drops an inherited condition so."""
     spec = {
-        k: v for k, v in (plain(cfg.experiment.get("conditions")) or {}).items() if v is not None
+        k: v for k, v in (to_plain(cfg.experiment.get("conditions")) or {}).items() if v is not None
     }
     if not spec:
         return [Condition(name=str(cfg.controller.get("type", "default")), cfg=cfg, overrides=[])]
@@ -139,7 +127,7 @@ def resolve_conditions(cfg: DictConfig, compose: ComposeFn) -> list[Condition]:
 
 def resolve_phases(cfg: DictConfig, trials: int) -> list[Phase]:
     """``experiment.phases`` (list of {name, trials, overrides}) or one phase of ``trials``."""
-    spec = plain(cfg.experiment.get("phases")) or []
+    spec = to_plain(cfg.experiment.get("phases")) or []
     if not spec:
         return [Phase(name="main", trials=trials, overrides=[])]
     if not isinstance(spec, list):
@@ -209,16 +197,16 @@ def load_learned_states(init_from: Any, plan: Plan) -> None:
 
 def build_components(cfg: DictConfig) -> Components:
     """Build and validate simulator, task and controller from one composed config."""
-    start = list(plain(cfg.task.get("start")) or [])
-    orientation = plain(cfg.task.get("orientation"))
+    start = list(to_plain(cfg.task.get("start")) or [])
+    orientation = to_plain(cfg.task.get("orientation"))
     if orientation and cfg.task.get("dim") == 3:  # the 3D start pose includes the tool's quaternion
         start += list(orientation)
     # before the scene is parsed: a 2-D scene read as a 3-D one fails on an "unknown key"
     check_dims(cfg.task.get("dim"), backend(cfg.sim.get("name")).dim, cfg)
-    sim = make_sim(plain(cfg.sim), plain(cfg.task.get("scene", {})), start)
+    sim = make_sim(to_plain(cfg.sim), to_plain(cfg.task.get("scene", {})), start)
     task = load_task(cfg.task, sim.control_dt)
     check_dims(task.dim, sim.dim, cfg)
-    controller = make_controller(plain(cfg.controller))
+    controller = make_controller(to_plain(cfg.controller))
     controller.reset(task.dim, sim.control_dt)  # validates dimension-dependent gains
     return Components(sim=sim, task=task, controller=controller)
 
@@ -242,8 +230,8 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
     """Validate the ``experiment`` and ``metrics`` groups; return the settings the loop uses."""
     exp = cfg.experiment
     kind = exp.get("kind", "trials")
-    if kind != "trials" and kind not in ANALYSES:
-        allowed = ", ".join(("trials", *ANALYSES))
+    if kind != "trials" and kind not in ANALYSIS_KINDS:
+        allowed = ", ".join(("trials", *ANALYSIS_KINDS))
         raise ConfigError("experiment.kind", f"must be one of {allowed}, got {kind!r}")
     fast = check_bool("experiment.fast", exp.get("fast", False))
     trials = check_int_positive("experiment.trials", exp.get("trials", 1))
@@ -375,16 +363,10 @@ def run_experiment(
     record is appended to ``finished``, if given, as soon as the trial ends (what an
     interrupted run's summary keeps).
     """
+    settings = check_experiment(cfg)  # an unknown experiment.kind is refused here
     kind = cfg.experiment.get("kind", "trials")
-    if kind in ANALYSES:  # an analysis, not a trial loop: its module writes the run directory
-        import importlib
-
-        module, func = ANALYSES[kind].split(":")
-        return getattr(importlib.import_module(module), func)(cfg, compose, out_dir)
     if kind != "trials":
-        allowed = ", ".join(("trials", *ANALYSES))
-        raise ConfigError("experiment.kind", f"must be one of {allowed}, got {kind!r}")
-    settings = check_experiment(cfg)
+        raise ConfigError("experiment.kind", f"{kind!r} is an analysis: ccm.analyses.run runs it")
     plan = plan_experiment(cfg, compose, settings["trials"])
     check_trial_steps(plan, settings)
     extra = check_extra_metrics(cfg)
@@ -409,9 +391,7 @@ def run_experiment(
     sim_time = 0.0
     done: dict[str, int] = {}  # trials run per condition
     planned_left = total_steps  # planned steps of the trials not yet run
-    solve_s: dict[str, list[float]] = {}  # wall time of each MPC solve (GP-MPC), per condition
-    solve_cpu: dict[str, list[float]] = {}  # process CPU time of each MPC solve, per condition
-    solve_it: dict[str, list[int]] = {}  # IPOPT iterations of each MPC solve, per condition
+    timing = _SolveTiming()
     try:
         for cond, phases in plan:
             controller = phases[0][1].controller
@@ -440,43 +420,89 @@ def run_experiment(
                             trial_path(out_dir, cond.name, trial), rec.arrays(),
                             settings["timeseries_bits"],
                         )  # fmt: skip
-                    arrays = rec.arrays()
-                    metrics = trial_metrics(
-                        arrays,
-                        comp.task.dim,
-                        comp.sim.control_dt,
-                        rec.pattern_duration,
-                        settings["lowpass_hz"],
-                        settings["completion_tol_m"],
-                    )
-                    # the (re-timed) pattern's end: "the motion pattern was completed in"
-                    # (seed A §4.5.1); completion_time_s also asks for the error to settle
-                    metrics["pattern_time_s"] = rec.pattern_duration
-                    metrics.update(compute_extra_metrics(extra, arrays, comp, cfg))
-                    trials_out.append(
-                        {
-                            "condition": cond.name,
-                            "phase": ph.name,
-                            "trial": trial,
-                            "seed": seed,
-                            **metrics,
-                        }
-                    )
-                    timing = (comp.controller.report() or {}).get("timing") or {}
-                    solve_s.setdefault(cond.name, []).extend(timing.get("mpc_solve_s", []))
-                    solve_cpu.setdefault(cond.name, []).extend(timing.get("mpc_solve_cpu_s", []))
-                    solve_it.setdefault(cond.name, []).extend(timing.get("mpc_iterations", []))
+                    row = {"condition": cond.name, "phase": ph.name, "trial": trial, "seed": seed}
+                    trials_out.append({**row, **_score_trial(rec, comp, settings, extra, cfg)})
+                    timing.add(cond.name, comp.controller.report())
                     kept = logs.setdefault(cond.name, [])
                     kept[1:] = []  # keep the first and the latest trial's log for figures
-                    kept.append(arrays)
+                    kept.append(rec.arrays())
                     controller.end_trial()
                 comp.sim.close()
     finally:
         if bar is not None:
             bar.close()
     save_learned_states(out_dir, plan, done)
-    wall = time.perf_counter() - wall0
-    last_phase = {cond.name: phases[-1][0].name for cond, phases in plan}
+    info = {"wall_time_s": (wall := time.perf_counter() - wall0), "sim_time_s": sim_time,
+            "realtime_factor": sim_time / wall, **timing.info()}  # fmt: skip
+    return _write_run(cfg, out_dir, plan, logs, settings, trials_out, info)
+
+
+def _score_trial(
+    rec: TrialRecorder, comp: Components, settings: Mapping[str, Any], extra: Sequence[str],
+    cfg: DictConfig,
+) -> dict[str, Any]:  # fmt: skip
+    """The metrics of one recorded trial: the base ones, the pattern's end and the extra
+    metrics the experiment names."""
+    arrays = rec.arrays()
+    metrics = trial_metrics(
+        arrays,
+        comp.task.dim,
+        comp.sim.control_dt,
+        rec.pattern_duration,
+        settings["lowpass_hz"],
+        settings["completion_tol_m"],
+    )
+    # the (re-timed) pattern's end: "the motion pattern was completed in" (seed A §4.5.1);
+    # completion_time_s also asks for the error to settle
+    metrics["pattern_time_s"] = rec.pattern_duration
+    metrics.update(compute_extra_metrics(extra, arrays, comp, cfg))
+    return metrics
+
+
+class _SolveTiming:
+    """Wall time, process CPU time and IPOPT iterations of each MPC solve (GP-MPC), per
+    condition, from the controllers' ``report()``; summarised for ``run_info.json``."""
+
+    def __init__(self) -> None:
+        self.wall: dict[str, list[float]] = {}
+        self.cpu: dict[str, list[float]] = {}
+        self.iters: dict[str, list[int]] = {}
+
+    def add(self, name: str, report: Mapping[str, Any] | None) -> None:
+        timing = (report or {}).get("timing") or {}
+        self.wall.setdefault(name, []).extend(timing.get("mpc_solve_s", []))
+        self.cpu.setdefault(name, []).extend(timing.get("mpc_solve_cpu_s", []))
+        self.iters.setdefault(name, []).extend(timing.get("mpc_iterations", []))
+
+    def info(self) -> dict[str, Any]:
+        """Seed B Table 2's "MPC rate" (median solves per second) from wall and CPU time,
+        the median iterations (an active constraint takes more: the rate's context) and the
+        cost of one iteration; empty without MPC solves."""
+        if not any(self.wall.values()):
+            return {}
+        solve_s, solve_it = self.wall, self.iters
+        return {
+            "mpc_rate_hz": {n: 1.0 / float(np.median(v)) for n, v in solve_s.items() if v},
+            # from the process's CPU time: what another job on the machine cannot slow
+            "mpc_cpu_rate_hz": {
+                n: 1.0 / float(np.median(v)) for n, v in self.cpu.items() if v and np.median(v) > 0
+            },
+            "mpc_iterations_median": {n: float(np.median(v)) for n, v in solve_it.items() if v},
+            "mpc_ms_per_iteration": {  # the cost of one iteration, whatever their number
+                n: 1e3 * float(np.median([t / i for t, i in zip(solve_s[n], v, strict=True)
+                                          if i > 0]))
+                for n, v in solve_it.items()
+                if any(i > 0 for i in v)
+            },
+        }  # fmt: skip
+
+
+def _write_run(
+    cfg: DictConfig, out_dir: Path, plan: Plan, logs: Mapping[str, Any],
+    settings: Mapping[str, Any], trials_out: list[dict[str, Any]], info: dict[str, Any],
+) -> dict[str, Any]:  # fmt: skip
+    """Figures, the H4 contact table, ``run_info.json`` (wall-clock facts vary run to run,
+    so they live outside the summary) and ``summary.json`` last; returns the summary."""
     if settings["figures"]:
         from ccm.plots import write_figures
 
@@ -484,12 +510,13 @@ def run_experiment(
             out_dir / "figures",
             {cond.name: phases[-1][1] for cond, phases in plan},
             logs,
-            {**settings, "metrics": plain(cfg.metrics)},
+            {**settings, "metrics": to_plain(cfg.metrics)},
             trials_out,
         )
     table = contact_table(trials_out)
     if table is not None:  # seed A Table 1 layout (H4 contact learning)
         write_atomic(out_dir / "contact_learning.md", table)
+    last_phase = {cond.name: phases[-1][0].name for cond, phases in plan}
     summary = {
         "experiment": str(cfg.experiment.name),
         "status": "ok",
@@ -511,25 +538,6 @@ def run_experiment(
     init_from = OmegaConf.select(cfg, "init_from", default=None)
     if init_from is not None:
         summary["init_from"] = str(init_from)  # as given: the same command, the same summary
-    # wall-clock facts vary run to run, so they live outside summary.json (determinism)
-    info: dict[str, Any] = {
-        "wall_time_s": wall, "sim_time_s": sim_time, "realtime_factor": sim_time / wall,
-    }  # fmt: skip
-    if any(solve_s.values()):  # seed B Table 2's "MPC rate": median solves per second
-        info["mpc_rate_hz"] = {n: 1.0 / float(np.median(v)) for n, v in solve_s.items() if v}
-        # the same from the process's CPU time: what another job on the machine cannot slow
-        info["mpc_cpu_rate_hz"] = {
-            n: 1.0 / float(np.median(v)) for n, v in solve_cpu.items() if v and np.median(v) > 0
-        }  # fmt: skip
-        # solves with an active constraint take more iterations: the rate's context
-        info["mpc_iterations_median"] = {
-            n: float(np.median(v)) for n, v in solve_it.items() if v
-        }  # fmt: skip
-        info["mpc_ms_per_iteration"] = {  # the cost of one iteration, whatever their number
-            n: 1e3 * float(np.median([s / i for s, i in zip(solve_s[n], v, strict=True) if i > 0]))
-            for n, v in solve_it.items()
-            if any(i > 0 for i in v)
-        }  # fmt: skip
     write_json_atomic(out_dir / "run_info.json", info)
     write_json_atomic(out_dir / "summary.json", summary)
     return summary

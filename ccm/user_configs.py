@@ -104,3 +104,19 @@ def option_file(group: str, option: str, dirs: Sequence[Path], package_dir: Path
         if (d / group / f"{option}.yaml").is_file():
             return d / group / f"{option}.yaml"
     return package_dir / group / f"{option}.yaml"
+
+
+def config_dir() -> Path:
+    """The package's config directory: shipped in the wheel as ``ccm/_configs``, or
+    ``configs/`` in a source checkout (editable install)."""
+    pkg = Path(__file__).resolve().parent
+    for candidate in (pkg / "_configs", pkg.parent / "configs"):
+        if (candidate / "config.yaml").is_file():
+            return candidate
+    raise FileNotFoundError(f"ccm configs not found next to {pkg}")
+
+
+def group_options(group: str, dirs: Sequence[Path] = ()) -> list[str]:
+    """Option names of a config group (its YAML files), in the user's config directories
+    ``dirs`` and the package's."""
+    return options(group, dirs, config_dir())

@@ -19,8 +19,8 @@ from ccm.control.base import Controller
 from ccm.control.impedance import FixedImpedance
 from ccm.control.mrac import MRAC
 from ccm.control.registry import make_controller
-from ccm.errors import ConfigError
-from ccm.runner import Components, build_components, plain
+from ccm.errors import ConfigError, to_plain
+from ccm.runner import Components, build_components
 from ccm.sim.pymunk2d import Pymunk2D
 from ccm.tasks.task import load_task
 from ccm.types import Observation, TargetSample
@@ -197,9 +197,9 @@ def test_tuned_baselines_track_a_slow_target_in_free_space(
     amount; measured 28 mm (MRAC), 21 mm (AIC), < 0.01 mm (BAC).
     """
     cfg = composer([f"controller={controller}"])
-    sim = Pymunk2D.from_config(plain(cfg.sim), FREE_TASK["scene"], FREE_TASK["start"])
+    sim = Pymunk2D.from_config(to_plain(cfg.sim), FREE_TASK["scene"], FREE_TASK["start"])
     comp = Components(
-        sim, load_task(FREE_TASK, sim.control_dt), make_controller(plain(cfg.controller))
+        sim, load_task(FREE_TASK, sim.control_dt), make_controller(to_plain(cfg.controller))
     )
     run = simulate(comp, 8.0)
     err = np.linalg.norm(run["target"] - run["pos"], axis=1)

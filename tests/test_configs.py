@@ -6,8 +6,9 @@ from pathlib import Path
 
 import pytest
 
+from ccm.analyses import run as run_experiment
 from ccm.cli import GROUPS, config_dir, group_options
-from ccm.runner import check_experiment, plan_experiment, run_experiment
+from ccm.runner import check_experiment, plan_experiment
 
 ALL_OPTIONS = [(g, o) for g in GROUPS for o in group_options(g)]
 

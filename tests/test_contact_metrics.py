@@ -12,7 +12,8 @@ import pytest
 
 from ccm.contact_metrics import contact_metrics
 from ccm.errors import ConfigError
-from ccm.metrics import EXTRA_METRICS, compute_extra_metrics, derivatives
+from ccm.filters import derivatives
+from ccm.metrics import EXTRA_METRICS, compute_extra_metrics
 from ccm.plots import write_figures
 from ccm.tasks.task import load_task
 

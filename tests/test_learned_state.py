@@ -16,9 +16,9 @@ from omegaconf import DictConfig
 
 from ccm.control.base import Controller
 from ccm.control.registry import make_controller
-from ccm.errors import ConfigError
+from ccm.errors import ConfigError, to_plain
 from ccm.learned_state import STATE_FORMAT
-from ccm.runner import plain, plan_experiment, save_learned_states
+from ccm.runner import plan_experiment, save_learned_states
 from ccm.types import Observation, TargetSample
 
 Composer = Callable[[Sequence[str]], DictConfig]
@@ -27,7 +27,7 @@ CCM = str(Path(sys.executable).parent / "ccm")
 
 
 def build(composer: Composer, *overrides: str) -> Controller:
-    c = make_controller(plain(composer(list(overrides)).controller))
+    c = make_controller(to_plain(composer(list(overrides)).controller))
     c.reset(2, 0.001)
     return c
 

@@ -5,12 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ccm.filters import derivatives, lowpass
 from ccm.metrics import (
     aggregate,
-    derivatives,
     force_prediction_metrics,
     learning_curve,
-    lowpass,
     motion_error,
     trial_metrics,
 )

@@ -25,6 +25,7 @@ from pathlib import Path
 import pytest
 
 import ccm.cli as cli
+import ccm.user_configs as user_configs
 
 CCM = str(Path(sys.executable).parent / "ccm")
 NOISE = (re.compile(r"^pybullet build time:"),)
@@ -490,8 +491,8 @@ experiment:
 """
 
 RUN_WITH_CONFIGS = (
-    "import sys; from pathlib import Path; import ccm.cli as c; "
-    "c.config_dir = lambda: Path(sys.argv[1]); sys.exit(c.main(sys.argv[2:]))"
+    "import sys; from pathlib import Path; import ccm.cli as c, ccm.user_configs as u; "
+    "u.config_dir = lambda: Path(sys.argv[1]); sys.exit(c.main(sys.argv[2:]))"
 )
 
 
@@ -532,7 +533,7 @@ def test_yaml_syntax_error_is_one_line(tmp_path: Path, bad_yaml_configs: Path) -
 def test_list_names_an_unreadable_config(
     bad_yaml_configs: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
 ) -> None:
-    monkeypatch.setattr(cli, "config_dir", lambda: bad_yaml_configs)
+    monkeypatch.setattr(user_configs, "config_dir", lambda: bad_yaml_configs)
     assert cli.main(["list"]) == cli.EXIT_CONFIG
     out = capsys.readouterr().out
     (line,) = [x for x in out.splitlines() if "bad_yaml" in x]

@@ -18,6 +18,7 @@ from test_reliability import ccm as ccm_process
 from test_reliability import check_one_line, meaningful, run_in_process
 
 import ccm.cli as cli
+import ccm.user_configs as user_configs
 from ccm.jobdir import job_dir_name
 
 FAST = ["experiment=smoke", "experiment.fast=true", "experiment.figures=false"]
@@ -266,7 +267,7 @@ def test_list_names_a_config_whose_top_level_is_a_list(
     configs = tmp_path / "configs"
     shutil.copytree(cli.config_dir(), configs)
     (configs / "task" / "listed.yaml").write_text("- 1\n- 2\n")
-    monkeypatch.setattr(cli, "config_dir", lambda: configs)
+    monkeypatch.setattr(user_configs, "config_dir", lambda: configs)
     code, out, err = run_in_process(["list"], capsys)
     assert code == cli.EXIT_CONFIG and "Traceback" not in out + err
     (line,) = [x for x in out.splitlines() if "listed" in x]

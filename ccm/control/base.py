@@ -9,6 +9,7 @@ from typing import Any, Self
 import numpy as np
 
 from ccm.errors import ConfigError, constructor_kwargs
+from ccm.protocols import Pattern
 from ccm.types import Command, Observation, TargetSample
 
 
@@ -45,8 +46,8 @@ class Controller(ABC):
         """
 
     def prepare(
-        self, pattern: Any, contacts: Sequence[Mapping[str, Any]], rng: np.random.Generator
-    ) -> Any:
+        self, pattern: Pattern, contacts: Sequence[Mapping[str, Any]], rng: np.random.Generator
+    ) -> Pattern:
         """Called at the start of each trial, after :meth:`reset`, with the planned target
         pattern P, the task's *expected* contacts (nominal positions, standing in for a
         vision system; never the scene) and a seeded generator for estimate noise.

@@ -31,4 +31,4 @@ CONTROLLERS: dict[str, type[Controller]] = {
 def make_controller(cfg: Mapping[str, Any], key: str = "controller") -> Controller:
     """Build a controller from a plain config mapping with a ``type`` field."""
     kind = check_choice(f"{key}.type", cfg.get("type"), CONTROLLERS)
-    return CONTROLLERS[kind].from_config(cfg, key=key)  # type: ignore[attr-defined]
+    return CONTROLLERS[kind].from_config(cfg, key=key)

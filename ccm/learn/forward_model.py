@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from ccm.errors import ConfigError, check_int_positive, check_keys, check_positive
+from ccm.protocols import ForwardModel
 
 N_STATE = 4
 N_EFFECT = 2
@@ -361,7 +362,7 @@ class FrozenGMMForwardModel:
 FORWARD_MODELS = {"igmm": IncrementalForwardModel, "fixed_gmm": FrozenGMMForwardModel}
 
 
-def make_forward_model(cfg: dict[str, Any], key: str = "controller.forward_model") -> Any:
+def make_forward_model(cfg: dict[str, Any], key: str = "controller.forward_model") -> ForwardModel:
     """Build a forward model from ``{kind, feature_scale, horizon_s, igmm: {...},
     fixed_gmm: {...}}``.
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +37,14 @@ class Simulator(ABC):
         """Control period [s]."""
         return self.dt * self.control_decimation
 
+    @classmethod
+    @abstractmethod
+    def from_config(
+        cls, sim_cfg: Mapping[str, Any], scene_cfg: Mapping[str, Any], start: Sequence[float]
+    ) -> Simulator:
+        """Build from the ``sim`` group, ``task.scene`` and ``task.start`` configs; a
+        ConfigError names the first invalid key."""
+
     @abstractmethod
     def reset(self, seed: int | None = None) -> tuple[Observation, StepInfo]:
         """Rebuild the scene, place the end-effector at its start pose, seed the sensor noise."""
@@ -45,6 +55,13 @@ class Simulator(ABC):
 
     def close(self) -> None:  # noqa: B027 - optional hook, most backends hold nothing
         """Release backend resources."""
+
+    def __enter__(self) -> Simulator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """``with make_sim(...) as sim:`` closes the simulator on the way out."""
+        self.close()
 
 
 def all_finite(*arrays: np.ndarray) -> bool:

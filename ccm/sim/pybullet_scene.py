@@ -25,8 +25,8 @@ from ccm.errors import (
     check_positive,
     check_range,
     check_vector,
+    to_plain,
 )
-from ccm.sim.scene import as_plain
 from ccm.sim.sensor import SensorConfig
 
 #: Franka's documented "ready" pose, used as IK seed and default rest posture [rad]
@@ -81,7 +81,7 @@ class ToolSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> ToolSpec:
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, ("size", "mass"))
         size = _vec(f"{key}.size", d.get("size", cls.size), 3)
         for i, s in enumerate(size):
@@ -145,7 +145,7 @@ class PyBullet3DConfig:
     @classmethod
     def from_mapping(cls, cfg: Any, prefix: str = "sim") -> PyBullet3DConfig:
         """Parse the ``sim`` config group; errors name keys as ``sim.<field>``."""
-        d = as_plain(cfg, prefix)
+        d = to_plain(cfg, prefix)
         check_keys(prefix, d, _SIM_KEYS)
         if "name" in d and d["name"] != "pybullet3d":
             raise ConfigError(f"{prefix}.name", f"must be 'pybullet3d', got {d['name']!r}")
@@ -234,7 +234,7 @@ class TableSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> TableSpec:
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, ("height", "size", "center", "friction", "restitution", "patches"))
         if "height" not in d:
             raise ConfigError(f"{key}.height", "is required (z of the table top in m)")
@@ -255,7 +255,7 @@ class TableSpec:
         patches: list[TablePatch] = []
         for i, pcfg in enumerate(raw):
             pk = f"{key}.patches[{i}]"
-            pd = as_plain(pcfg, pk)
+            pd = to_plain(pcfg, pk)
             check_keys(pk, pd, ("center", "size", "friction"))
             for req in ("center", "size", "friction"):
                 if req not in pd:
@@ -299,7 +299,7 @@ class Box3DSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> Box3DSpec:
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, ("center", "size", "friction", "restitution"))
         for req in ("center", "size"):
             if req not in d:
@@ -325,7 +325,7 @@ class Scene3D:
     @classmethod
     def from_mapping(cls, cfg: Any, prefix: str = "task.scene") -> Scene3D:
         """Parse ``{table, boxes}``; keys in errors start with ``prefix``."""
-        d = as_plain(cfg, prefix)
+        d = to_plain(cfg, prefix)
         check_keys(prefix, d, ("table", "boxes"))
         table = None
         if d.get("table") is not None:

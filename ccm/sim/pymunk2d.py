@@ -55,12 +55,13 @@ from ccm.errors import (
     check_keys,
     check_positive,
     check_vector,
+    to_plain,
 )
 from ccm.sim._pymunk_contacts import ContactReader
 from ccm.sim._pymunk_raw import RawBody
 from ccm.sim.base import Simulator
 from ccm.sim.hri_forces import HRIForces
-from ccm.sim.scene import SceneSpec, as_plain
+from ccm.sim.scene import SceneSpec
 from ccm.sim.sensor import FTSensor, SensorConfig
 from ccm.sim.start_pose import check_start_2d
 from ccm.types import Command, Observation, StepInfo
@@ -112,7 +113,7 @@ class Pymunk2DConfig:
     @classmethod
     def from_mapping(cls, cfg: Any, prefix: str = "sim") -> Pymunk2DConfig:
         """Parse the ``sim`` config group; errors name keys as ``sim.<field>``."""
-        d = as_plain(cfg, prefix)
+        d = to_plain(cfg, prefix)
         check_keys(prefix, d, _SIM_KEYS)
         if "name" in d and d["name"] != "pymunk2d":
             raise ConfigError(f"{prefix}.name", f"must be 'pymunk2d', got {d['name']!r}")

@@ -15,7 +15,6 @@ disturbance -- are specified in :mod:`ccm.sim.scene_hri` and re-exported here.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,52 +27,10 @@ from ccm.errors import (
     check_nonneg,
     check_positive,
     check_range,
-    check_vector,
+    to_plain,
 )
 from ccm.sim.scene_hri import CompliantWallSpec, HumanSpec, VibrationSpec
-
-Vec2 = tuple[float, float]
-
-
-# --------------------------------------------------------------------------- helpers
-
-
-def as_plain(cfg: Any, key: str) -> dict[str, Any]:
-    """Return ``cfg`` as a plain ``dict`` (resolving an OmegaConf ``DictConfig``).
-
-    Args:
-        cfg: a mapping or a ``DictConfig``; ``None`` gives an empty dict.
-        key: dotted config path used in the error message.
-
-    Raises:
-        ConfigError: if ``cfg`` is not a mapping.
-    """
-    if cfg is None:
-        return {}
-    try:
-        from omegaconf import DictConfig, ListConfig, OmegaConf
-
-        if isinstance(cfg, DictConfig | ListConfig):
-            cfg = OmegaConf.to_container(cfg, resolve=True)
-    except ImportError:  # pragma: no cover - omegaconf is a dependency
-        pass
-    if not isinstance(cfg, Mapping):
-        raise ConfigError(key, f"must be a mapping, got {type(cfg).__name__}")
-    return dict(cfg)
-
-
-def _vec2(key: str, value: Any) -> Vec2:
-    arr = check_vector(key, value, 2)
-    return (float(arr[0]), float(arr[1]))
-
-
-def _list(key: str, value: Any) -> list[Any]:
-    if value is None:
-        return []
-    if isinstance(value, str | bytes | Mapping) or not isinstance(value, Iterable):
-        raise ConfigError(key, f"must be a list, got {value!r}")
-    return list(value)
-
+from ccm.sim.scene_parse import RegionSpec, Vec2, as_list, vec2
 
 # --------------------------------------------------------------------------- elements
 
@@ -94,9 +51,9 @@ class EESpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> EESpec:
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, ("size", "mass", "rotate"))
-        size = _vec2(f"{key}.size", d.get("size", cls.size))
+        size = vec2(f"{key}.size", d.get("size", cls.size))
         for i, s in enumerate(size):
             check_positive(f"{key}.size[{i}]", s)
         mass = check_positive(f"{key}.mass", d.get("mass", cls.mass))
@@ -158,13 +115,13 @@ class SurfaceSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> SurfaceSpec:
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, ("a", "b", "friction", "restitution", "radius", "patches"))
         for req in ("a", "b"):
             if req not in d:
                 raise ConfigError(f"{key}.{req}", "is required (segment endpoint [x, y] in m)")
-        a = _vec2(f"{key}.a", d["a"])
-        b = _vec2(f"{key}.b", d["b"])
+        a = vec2(f"{key}.a", d["a"])
+        b = vec2(f"{key}.b", d["b"])
         friction = check_nonneg(f"{key}.friction", d.get("friction", cls.friction))
         restitution = _restitution(f"{key}.restitution", d.get("restitution", cls.restitution))
         radius = check_nonneg(f"{key}.radius", d.get("radius", cls.radius))
@@ -172,9 +129,9 @@ class SurfaceSpec:
         if surf.length <= 0.0:
             raise ConfigError(f"{key}.b", "must differ from a (zero-length segment)")
         patches: list[Patch] = []
-        for i, pcfg in enumerate(_list(f"{key}.patches", d.get("patches"))):
+        for i, pcfg in enumerate(as_list(f"{key}.patches", d.get("patches"))):
             pk = f"{key}.patches[{i}]"
-            pd = as_plain(pcfg, pk)
+            pd = to_plain(pcfg, pk)
             check_keys(pk, pd, ("from", "to", "friction"))
             for req in ("from", "to", "friction"):
                 if req not in pd:
@@ -213,13 +170,13 @@ class BoxSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> BoxSpec:
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, ("center", "size", "friction", "restitution"))
         for req in ("center", "size"):
             if req not in d:
                 raise ConfigError(f"{key}.{req}", "is required")
-        center = _vec2(f"{key}.center", d["center"])
-        size = _vec2(f"{key}.size", d["size"])
+        center = vec2(f"{key}.center", d["center"])
+        size = vec2(f"{key}.size", d["size"])
         for i, s in enumerate(size):
             check_positive(f"{key}.size[{i}]", s)
         return cls(
@@ -258,7 +215,7 @@ class SpringSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> SpringSpec:
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, ("anchor", "stiffness", "rest_length", "attach_s", "detach_s"))
         for req in ("anchor", "stiffness"):
             if req not in d:
@@ -268,40 +225,12 @@ class SpringSpec:
         if detach is not None and check_positive(f"{key}.detach_s", detach) <= attach:
             raise ConfigError(f"{key}.detach_s", f"must be > attach_s={attach!r}, got {detach!r}")
         return cls(
-            anchor=_vec2(f"{key}.anchor", d["anchor"]),
+            anchor=vec2(f"{key}.anchor", d["anchor"]),
             stiffness=check_positive(f"{key}.stiffness", d["stiffness"]),
             rest_length=check_nonneg(f"{key}.rest_length", d.get("rest_length", 0.0)),
             attach_s=float(attach),
             detach_s=None if detach is None else float(detach),
         )
-
-
-@dataclass(frozen=True)
-class RegionSpec:
-    """Axis-aligned rectangle ``center ± half_extents`` [m]."""
-
-    center: Vec2
-    half_extents: Vec2
-
-    def contains(self, x: float, y: float) -> bool:
-        """True if the point (x, y) lies inside the rectangle (boundary included)."""
-        return (
-            abs(x - self.center[0]) <= self.half_extents[0]
-            and abs(y - self.center[1]) <= self.half_extents[1]
-        )
-
-    @classmethod
-    def from_mapping(cls, cfg: Any, key: str) -> RegionSpec:
-        """Parse ``{center, half_extents}`` (both required; half extents > 0)."""
-        d = as_plain(cfg, key)
-        check_keys(key, d, ("center", "half_extents"))
-        for req in ("center", "half_extents"):
-            if req not in d:
-                raise ConfigError(f"{key}.{req}", "is required")
-        half = _vec2(f"{key}.half_extents", d["half_extents"])
-        for i, h in enumerate(half):
-            check_positive(f"{key}.half_extents[{i}]", h)
-        return cls(center=_vec2(f"{key}.center", d["center"]), half_extents=half)
 
 
 _SCHEDULE_KEYS = {
@@ -341,7 +270,7 @@ class ScheduleSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> ScheduleSpec:
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         kind = check_choice(f"{key}.kind", d.get("kind"), _SCHEDULE_KEYS)
         check_keys(key, d, _SCHEDULE_KEYS[kind])
         for req in _SCHEDULE_KEYS[kind][1:]:
@@ -367,7 +296,7 @@ class ViscousSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> ViscousSpec:
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, ("region", "schedule"))
         if "schedule" not in d:
             raise ConfigError(f"{key}.schedule", "is required")
@@ -409,14 +338,14 @@ class SceneSpec:
     @classmethod
     def from_mapping(cls, cfg: Any, prefix: str = "task.scene") -> SceneSpec:
         """Parse and validate a scene mapping; keys in errors start with ``prefix``."""
-        d = as_plain(cfg, prefix)
+        d = to_plain(cfg, prefix)
         check_keys(prefix, d, (
             "gravity", "ee", "surfaces", "boxes", "springs", "viscous", "compliant_walls",
             "human", "vibration",
         ))  # fmt: skip
 
         def parse_list(name: str, parser: Any) -> tuple[Any, ...]:
-            items = _list(f"{prefix}.{name}", d.get(name))
+            items = as_list(f"{prefix}.{name}", d.get(name))
             return tuple(parser(c, f"{prefix}.{name}[{i}]") for i, c in enumerate(items))
 
         def parse_opt(name: str, parser: Any) -> Any:

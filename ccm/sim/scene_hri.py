@@ -16,22 +16,18 @@ point) and are measured by the single F/T sensor, which sees ``f = f_h + f_c + f
 * :class:`VibrationSpec` (``vibration``): a sinusoidal polishing-spindle disturbance
   (seed B §3.1, §6.3: predominantly high-frequency). ``f_d``.
 
-This module imports :mod:`ccm.sim.scene` lazily (inside the parsers) because
-:mod:`ccm.sim.scene` imports the specs from here.
+The parsing helpers and the region shape come from :mod:`ccm.sim.scene_parse`, which
+:mod:`ccm.sim.scene` shares.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from ccm.errors import ConfigError, check_keys, check_nonneg, check_positive
-
-if TYPE_CHECKING:
-    from ccm.sim.scene import RegionSpec
-
-Vec2 = tuple[float, float]
+from ccm.errors import ConfigError, check_keys, check_nonneg, check_positive, to_plain
+from ccm.sim.scene_parse import RegionSpec, Vec2, as_list, vec2
 
 
 def _require(key: str, d: dict[str, Any], names: tuple[str, ...]) -> None:
@@ -68,17 +64,16 @@ class CompliantWallSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> CompliantWallSpec:
-        from ccm.sim.scene import _vec2, as_plain
 
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, ("point", "normal", "stiffness", "damping", "position_jitter_m"))
         _require(key, d, ("point", "normal", "stiffness"))
-        nx, ny = _vec2(f"{key}.normal", d["normal"])
+        nx, ny = vec2(f"{key}.normal", d["normal"])
         norm = math.hypot(nx, ny)
         if norm < 1e-9:
             raise ConfigError(f"{key}.normal", f"must be a non-zero vector, got {d['normal']!r}")
         return cls(
-            point=_vec2(f"{key}.point", d["point"]),
+            point=vec2(f"{key}.point", d["point"]),
             normal=(nx / norm, ny / norm),
             stiffness=check_positive(f"{key}.stiffness", d["stiffness"]),
             damping=check_nonneg(f"{key}.damping", d.get("damping", 0.0)),
@@ -124,16 +119,15 @@ class HumanSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> HumanSpec:
-        from ccm.sim.scene import _list, _vec2, as_plain
 
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, (
             "goals", "goal_index", "stiffness", "damping", "max_force", "noise_std",
             "noise_cutoff_hz", "active_after_s", "ramp_s",
         ))  # fmt: skip
         _require(key, d, ("goals", "stiffness", "max_force"))
         goals = tuple(
-            _vec2(f"{key}.goals[{i}]", g) for i, g in enumerate(_list(f"{key}.goals", d["goals"]))
+            vec2(f"{key}.goals[{i}]", g) for i, g in enumerate(as_list(f"{key}.goals", d["goals"]))
         )
         if not goals:
             raise ConfigError(f"{key}.goals", "must hold at least one goal [x, y]")
@@ -181,12 +175,11 @@ class VibrationSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> VibrationSpec:
-        from ccm.sim.scene import RegionSpec, _vec2, as_plain
 
-        d = as_plain(cfg, key)
+        d = to_plain(cfg, key)
         check_keys(key, d, ("amplitude", "frequency_hz", "region", "noise_std"))
         _require(key, d, ("amplitude", "frequency_hz"))
-        amp = _vec2(f"{key}.amplitude", d["amplitude"])
+        amp = vec2(f"{key}.amplitude", d["amplitude"])
         for i, a in enumerate(amp):
             check_nonneg(f"{key}.amplitude[{i}]", a)
         region = d.get("region")

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import ConfigError, check_finite, check_keys, check_nonneg, check_vector
+from ccm.errors import ConfigError, check_finite, check_keys, check_nonneg, check_vector, to_plain
 
 
 def _per_axis(key: str, value: Any, dim: int, nonneg: bool) -> tuple[float, ...]:
@@ -112,11 +112,10 @@ class SensorConfig:
         Raises:
             ConfigError: on unknown keys, negative std or wrong vector lengths.
         """
-        from ccm.sim.scene import as_plain
 
         allowed = ("force_noise_std", "torque_noise_std", "force_bias", "torque_bias",
                    "spike_prob", "spike_N", "dropout_prob", "dropout_steps")  # fmt: skip
-        d = as_plain(cfg, prefix)
+        d = to_plain(cfg, prefix)
         check_keys(prefix, d, allowed)
         return cls.from_values(
             **{k: d[k] for k in allowed if k in d},

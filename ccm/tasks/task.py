@@ -13,10 +13,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
-from omegaconf.errors import OmegaConfBaseException
+from omegaconf import DictConfig
 
-from ccm.errors import ConfigError, check_choice, check_keys, check_vector
+from ccm.errors import ConfigError, check_choice, check_keys, check_vector, to_plain
 from ccm.tasks.trajectory import MotionPattern, build_pattern
 
 __all__ = ["CONTACT_KINDS", "TASK_KEYS", "Task", "load_task"]
@@ -84,19 +83,6 @@ class Task:
     def duration(self) -> float:
         """Duration of the target pattern [s]."""
         return self.pattern.duration
-
-
-def _to_dict(key: str, cfg: Any) -> dict[str, Any]:
-    if isinstance(cfg, DictConfig):
-        try:
-            out = OmegaConf.to_container(cfg, resolve=True)
-        except OmegaConfBaseException as err:
-            raise ConfigError(key, str(err).splitlines()[0]) from None
-        assert isinstance(out, dict)
-        return out
-    if not isinstance(cfg, Mapping):
-        raise ConfigError(key, f"must be a mapping, got {type(cfg).__name__}")
-    return dict(cfg)
 
 
 def _required_and_name(key: str, cfg: Mapping[str, Any], required: tuple[str, ...]) -> str:
@@ -190,7 +176,7 @@ def load_task(
     Raises:
         ConfigError: on unknown or missing keys and invalid values, naming the full key.
     """
-    cfg = _to_dict(key, task_cfg)
+    cfg = to_plain(task_cfg, key)
     check_keys(key, cfg, TASK_KEYS)
     name = _required_and_name(key, cfg, _REQUIRED)
     description = cfg.get("description") or ""

@@ -1,0 +1,160 @@
+"""The package's layers (issue #21): every module imports only its own layer or the layers
+below it, and no import cycle exists, counting imports inside functions.
+
+The layers, bottom to top (``|`` separates siblings, which must not import each other)::
+
+    core  <-  sim | tasks | learn  <-  control  <-  metrics  <-  plots  <-  experiment
+          <-  analyses  <-  reporting  <-  cli, bench
+
+Plots sit above metrics rather than beside them: a figure draws what a metric computes (the
+motion-subspace error, the mode decisions, the rail distances) and reuses that code instead
+of repeating it. The imports are read from the source (``ast``), so a function-level import
+counts as much as one at the top of a module.
+"""
+
+from __future__ import annotations
+
+import ast
+import fnmatch
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "ccm"
+
+#: (layer, sibling group, module patterns), bottom to top; the first matching pattern wins
+LAYERS: list[tuple[int, str, tuple[str, ...]]] = [
+    (0, "core", ("ccm.types", "ccm.errors", "ccm.filters", "ccm._filter_kernels", "ccm.records",
+                 "ccm.timeseries", "ccm.jobdir", "ccm.user_configs", "ccm.config_check",
+                 "ccm.protocols")),
+    (1, "sim", ("ccm.sim", "ccm.sim.*")),
+    (1, "tasks", ("ccm.tasks", "ccm.tasks.*")),
+    (1, "learn", ("ccm.learn", "ccm.learn.*")),
+    (2, "control", ("ccm.control", "ccm.control.*")),
+    (3, "metrics", ("ccm.metrics", "ccm.*_metrics")),
+    (4, "plots", ("ccm.plots", "ccm.plots_*")),
+    (5, "experiment", ("ccm.runner", "ccm.learned_state", "ccm.run_record", "ccm.interrupts",
+                       "ccm.sweep_check")),
+    (6, "analyses", ("ccm.analyses", "ccm.h3", "ccm.h3_*", "ccm.gp_contact_models",
+                     "ccm.mpc_convexity", "ccm.forward_model_study")),
+    (7, "reporting", ("ccm.claims", "ccm.claim_stats", "ccm.report", "ccm.report_*",
+                      "ccm.paper", "ccm.load")),
+    (8, "cli", ("ccm.cli", "ccm.bench", "ccm.bench.*")),
+]  # fmt: skip
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports(path: Path, known: Iterable[str]) -> set[str]:
+    """The ccm modules ``path`` imports anywhere in its source (``from ccm.x import y`` is
+    ``ccm.x.y`` if that is a module, else ``ccm.x``)."""
+    known = set(known)
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            if node.module.split(".")[0] == "ccm":
+                for alias in node.names:
+                    sub = f"{node.module}.{alias.name}"
+                    out.add(sub if sub in known else node.module)
+        elif isinstance(node, ast.Import):
+            out |= {a.name for a in node.names if a.name.split(".")[0] == "ccm"}
+    return out
+
+
+def import_graph() -> dict[str, set[str]]:
+    files = {module_name(p): p for p in PACKAGE.rglob("*.py")}
+    return {m: imports(p, files) - {m, "ccm"} for m, p in files.items()}
+
+
+def layer_of(module: str) -> tuple[int, str] | None:
+    for level, group, patterns in LAYERS:
+        if any(fnmatch.fnmatchcase(module, pat) for pat in patterns):
+            return level, group
+    return None
+
+
+def violations(graph: Mapping[str, Iterable[str]]) -> list[str]:
+    """Every import that goes up a layer or across siblings, and every unplaced module."""
+    out = []
+    for mod, targets in sorted(graph.items()):
+        here = layer_of(mod)
+        if here is None:
+            if mod != "ccm":
+                out.append(f"{mod}: in no layer (tests/test_layers.py LAYERS)")
+            continue
+        for tgt in sorted(targets):
+            there = layer_of(tgt)
+            if there is None:
+                continue  # reported as its own module
+            if there[0] > here[0] or (there[0] == here[0] and there[1] != here[1]):
+                out.append(f"{mod} ({here[1]}) imports {tgt} ({there[1]})")
+    return out
+
+
+def cycles(graph: Mapping[str, Iterable[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_the_checks_catch_an_upward_import_a_sibling_import_and_a_cycle() -> None:
+    """The checks can fail: a metric importing the runner, the simulator importing a
+    learner, and two plots importing each other are each reported."""
+    graph = {
+        "ccm.metrics": {"ccm.runner"},
+        "ccm.sim.base": {"ccm.learn.igmm"},
+        "ccm.plots": {"ccm.plots_modes"},
+        "ccm.plots_modes": {"ccm.plots"},
+        "ccm.runner": set(), "ccm.learn.igmm": set(),
+    }  # fmt: skip
+    assert violations(graph) == [
+        "ccm.metrics (metrics) imports ccm.runner (experiment)",
+        "ccm.sim.base (sim) imports ccm.learn.igmm (learn)",
+    ]
+    assert cycles(graph) == [["ccm.plots", "ccm.plots_modes"]]
+
+
+def test_every_import_points_down_the_layers() -> None:
+    found = violations(import_graph())
+    assert not found, "\n".join(found)
+
+
+@pytest.mark.parametrize("name", ["ccm.metrics", "ccm.plots", "ccm.runner"])
+def test_the_graph_sees_the_modules_imports(name: str) -> None:
+    """The graph is not empty by mistake: these modules import other ccm modules."""
+    assert import_graph()[name]
+
+
+def test_no_import_cycles() -> None:
+    found = cycles(import_graph())
+    assert not found, found
