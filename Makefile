@@ -45,7 +45,7 @@ format: setup
 	$(BIN)/ruff format ccm tests
 	$(BIN)/ruff check --fix ccm tests
 
-# every paper experiment (claims in experiments/claims.yaml; the list is ccm.paper's) over the
+# every paper experiment (claims in experiments/claims.yaml; the list is ccm.reporting.paper's) over the
 # seeds in its config's hydra.sweeper.params, two sweeps at a time, then ccm report
 PAPER_DIR ?= outputs/paper
 

@@ -3,6 +3,6 @@
 
 __version__ = "0.1.0"
 
-from ccm.load import Run, load_run  # noqa: E402  (after the version: a light, files-only import)
+from ccm.reporting.load import Run, load_run  # noqa: E402  (after the version: a light, files-only import)
 
 __all__ = ["Run", "load_run", "__version__"]

@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import ccm
-from ccm import jobdir, user_configs
-from ccm.user_configs import config_dir, group_options  # noqa: F401 - also importable from here
+from ccm.experiment import jobdir, user_configs
+from ccm.experiment.user_configs import config_dir, group_options  # noqa: F401 - also importable from here
 
 jobdir.register()  # hydra.sweep.subdir names jobs through it, here and in launcher workers
 
@@ -56,7 +56,7 @@ def describe(group: str, option: str, dirs: Sequence[Path] = ()) -> str:
     top level is not a mapping raises ConfigError naming it."""
     from omegaconf import DictConfig, OmegaConf
 
-    from ccm.errors import ConfigError
+    from ccm.core.errors import ConfigError
 
     path = user_configs.option_file(group, option, dirs, user_configs.config_dir())
     node = OmegaConf.load(path)
@@ -76,7 +76,7 @@ def cmd_list(args: Sequence[str] = ()) -> int:
     """``ccm list [--config-dir DIR]``: every option of the main groups, with its line."""
     import yaml
 
-    from ccm.errors import ConfigError
+    from ccm.core.errors import ConfigError
 
     try:
         flagged, rest = user_configs.split_dir_flags(args)
@@ -154,7 +154,7 @@ def _check_groups(overrides: Sequence[str], dirs: Sequence[Path] = ()) -> str | 
 def precheck(overrides: Sequence[str], multirun: bool, dirs: Sequence[Path] = ()) -> str | None:
     """Compose each override combination and build its components, then check Hydra's own
     settings (output directory, launcher); return an error line. ``dirs``: the user's config
-    directories (:mod:`ccm.user_configs`), searched before the package's."""
+    directories (:mod:`ccm.experiment.user_configs`), searched before the package's."""
     from hydra import initialize_config_dir
     from hydra.errors import HydraException
 
@@ -181,9 +181,9 @@ def _check_combo(
     other than the seed, which changes no component); raise on bad input."""
     from hydra import compose
 
-    from ccm.config_check import check_trial_steps
-    from ccm.metrics import check_extra_metrics
-    from ccm.runner import check_experiment, plan_experiment
+    from ccm.experiment.config_check import check_trial_steps
+    from ccm.experiment.runner import check_experiment, plan_experiment
+    from ccm.metrics.trial import check_extra_metrics
 
     cfg = compose("config", overrides=[*combo, *user_configs.searchpath_override(dirs)])
     settings = check_experiment(cfg)
@@ -205,9 +205,9 @@ def _check_hydra(
     from hydra import compose
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from ccm import run_record
-    from ccm.config_check import check_hydra
-    from ccm.errors import ConfigError
+    from ccm.core.errors import ConfigError
+    from ccm.experiment import run_record
+    from ccm.experiment.config_check import check_hydra
 
     parsed = OverridesParser.create().parse_overrides(list(overrides))
     own = [
@@ -233,7 +233,7 @@ def _guarded(check: Callable[[], None]) -> str | None:
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    from ccm.errors import ConfigError
+    from ccm.core.errors import ConfigError
 
     try:
         check()
@@ -272,7 +272,7 @@ def _compose_extra(  # noqa: ANN202
         dirs = user_configs.job_dirs(user_configs.config_dir())
     bad = _check_groups(extra, dirs)
     if bad:
-        from ccm.errors import ConfigError
+        from ccm.core.errors import ConfigError
 
         key, _, _ = bad.partition(":")
         raise ConfigError(f"experiment.conditions ({key})", bad.split(": ", 1)[1])
@@ -289,14 +289,14 @@ def _one_line(exc: BaseException) -> str:
 
 
 def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's signature check
-    """The Hydra task function: lock and check the run directory (:mod:`ccm.run_record`),
+    """The Hydra task function: lock and check the run directory (:mod:`ccm.experiment.run_record`),
     run the experiment, or record the failure or interruption and exit non-zero."""
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
-    from ccm.interrupts import RunInterrupted, job_signals
-    from ccm.run_record import RecordRefused
-    from ccm.sweep_check import mark_refused
+    from ccm.experiment.interrupts import RunInterrupted, job_signals
+    from ccm.experiment.run_record import RecordRefused
+    from ccm.experiment.sweep_check import mark_refused
 
     hc = HydraConfig.get()
     out_dir = Path(hc.runtime.output_dir)
@@ -321,7 +321,7 @@ def _open_and_run(cfg: DictConfig, out_dir: Path, multirun: bool) -> None:
     write ``.hydra/`` and run."""
     from hydra.core.hydra_config import HydraConfig
 
-    from ccm.run_record import forced, ok_summary, open_record
+    from ccm.experiment.run_record import forced, ok_summary, open_record
 
     with open_record(out_dir, cfg, force=forced()) as record:
         if record.replaced is not None:
@@ -341,11 +341,11 @@ def _run_locked(cfg: DictConfig, out_dir: Path, task_overrides: list[str], multi
     to summary.json (status ``failed`` / ``interrupted``) before it ends the run."""
     from threadpoolctl import threadpool_limits
 
-    from ccm.analyses import run
-    from ccm.errors import ConfigError, SimulationDiverged
-    from ccm.interrupts import RunInterrupted, record_interrupt
-    from ccm.records import write_json_atomic
-    from ccm.runner import failed_summary
+    from ccm.analyses.dispatch import run
+    from ccm.core.errors import ConfigError, SimulationDiverged
+    from ccm.core.records import write_json_atomic
+    from ccm.experiment.interrupts import RunInterrupted, record_interrupt
+    from ccm.experiment.runner import failed_summary
 
     finished: list[dict] = []  # the trial loop's records, kept if the run is interrupted
     try:
@@ -399,7 +399,7 @@ _SHOWN = (
 
 def cmd_run(args: Sequence[str]) -> int:
     """``ccm run``: precheck, then the Hydra app; SIGINT/SIGTERM end it with one line."""
-    from ccm import interrupts, run_record, sweep_check
+    from ccm.experiment import interrupts, run_record, sweep_check
 
     args = list(args)
     if "--verbose" in args:
@@ -421,7 +421,7 @@ def _run_app(args: list[str]) -> int:
     """Precheck the overrides (exit 2 on a bad one), then run the Hydra app."""
     import hydra
 
-    from ccm.errors import ConfigError
+    from ccm.core.errors import ConfigError
 
     multirun = "-m" in args or "--multirun" in args
     flags = {"-m", "--multirun"}
@@ -443,7 +443,7 @@ def _run_app(args: list[str]) -> int:
     app = hydra.main(version_base="1.3", config_path=config_path, config_name="config")(_job)
     saved = sys.argv
     sys.argv = ["ccm run", *args]
-    from ccm import sweep_check
+    from ccm.experiment import sweep_check
 
     sweep_check.FAILED_JOBS.clear()
     try:
@@ -467,9 +467,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv[0] == "run":
         return cmd_run(argv[1:])
     if argv[0] in ("report", "paper"):
-        from ccm.errors import ConfigError
-        from ccm.paper import main as paper
-        from ccm.report import main as report
+        from ccm.core.errors import ConfigError
+        from ccm.reporting.paper import main as paper
+        from ccm.reporting.report import main as report
 
         try:
             return (report if argv[0] == "report" else paper)(argv[1:])

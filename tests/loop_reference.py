@@ -43,7 +43,7 @@ RUNS: dict[str, list[str]] = {
 
 def run_metrics(composer: Callable[[Sequence[str]], DictConfig], name: str) -> dict[str, Any]:
     """The summary's per-condition and per-trial metrics of run ``name`` (numbers only)."""
-    from ccm.runner import run_experiment
+    from ccm.experiment.runner import run_experiment
 
     overrides = RUNS[name]
     with tempfile.TemporaryDirectory() as tmp:

@@ -1,11 +1,11 @@
-"""Prediction skill and stiffness adaptation metrics (ccm/adaptation_metrics.py, issue #16)."""
+"""Prediction skill and stiffness adaptation metrics (ccm/metrics/adaptation.py, issue #16)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from ccm.adaptation_metrics import environment_changes, prediction_skill, stiffness_adaptation
+from ccm.metrics.adaptation import environment_changes, prediction_skill, stiffness_adaptation
 
 
 def log(n: int = 1000, **cols: np.ndarray) -> dict[str, np.ndarray]:

@@ -7,8 +7,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ccm.control.admittance import covariance_step, mean_step, rollout, system_matrices
-from ccm.errors import ConfigError
+from ccm.control.mpc.admittance import covariance_step, mean_step, rollout, system_matrices
+from ccm.core.errors import ConfigError
 
 TS = 0.01
 

@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.control.anticipation import AnticipatoryAVIC
-from ccm.control.contact_events import TransitionWindow
-from ccm.control.contact_regions import region_mask
-from ccm.errors import ConfigError
-from ccm.types import Observation, TargetSample
+from ccm.control.adaptive.anticipation import AnticipatoryAVIC
+from ccm.control.adaptive.contact_events import TransitionWindow
+from ccm.control.adaptive.contact_regions import region_mask
+from ccm.core.errors import ConfigError
+from ccm.core.types import Observation, TargetSample
 
 CONTACT = [{"name": "mid", "position": [0.0, 0.08], "kind": "collision"}]  # on the approach
 
@@ -40,7 +40,9 @@ def test_speed_reaches_the_approach_velocity_at_p_c(pattern) -> None:
     speeds = [np.linalg.norm(retimed.sample(t).velocity) for t in np.linspace(t_c, w.release, 500)]
     assert max(speeds) <= 0.05 + 1e-9
     assert max(speeds) == pytest.approx(0.05, rel=0.01)
-    belief = c.contact_map.contacts[0].belief  # C: 2 sigma of P + R (ccm.control.contact_regions)
+    belief = c.contact_map.contacts[
+        0
+    ].belief  # C: 2 sigma of P + R (ccm.control.adaptive.contact_regions)
     assert region_mask(belief, s.position[None, :], 2.0)[0]  # p_c is on the region's boundary
     before = retimed.warp.inverse(retimed.warp.phi(t_c) - c.path_dt)  # the plan sample before
     assert not region_mask(belief, retimed.sample(before).position[None, :], 2.0)[0]
@@ -100,7 +102,7 @@ def test_collisions_are_associated_in_plan_order(pattern) -> None:
 def test_spike_across_the_commanded_motion_is_no_collision(pattern) -> None:
     """A force jump while the tool moves across the planned motion (stick-slip along a wall)
     or a force that does not act against the motion is not a collision ahead."""
-    from ccm.learn.collisions import CollisionEvent
+    from ccm.learn.contact.collisions import CollisionEvent
 
     c = make()
     c.prepare(pattern, CONTACT, np.random.default_rng(0))
@@ -320,8 +322,8 @@ def test_transition_controllers_add_the_base_feedforward_when_configured(
     """Eq. 8's u_ff (issue #17 item 5): a transition controller listed in
     ``transition_feedforward`` subtracts the base's λ Ŵ of this step, as Eq. 4a does; the
     others do not. With the weight at 1 the command differs by exactly u_ff."""
-    from ccm.control.avic import AVIC
-    from ccm.types import Command
+    from ccm.control.adaptive.avic import AVIC
+    from ccm.core.types import Command
 
     ff = np.array([1.5, -0.5])
 

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from ccm.control.avic import AVIC
-from ccm.errors import ConfigError
-from ccm.types import Observation, TargetSample
+from ccm.control.adaptive.avic import AVIC
+from ccm.core.errors import ConfigError
+from ccm.core.types import Observation, TargetSample
 
 FIXED = {"kind": "fixed_gmm", "fixed_gmm": {"fit_steps": 50, "n_components": 2}}
 

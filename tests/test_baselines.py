@@ -1,4 +1,5 @@
-"""Adaptive-control baselines of seed A §4.2: MRAC, AIC and BAC (ccm.control.mrac/aic/bac).
+"""Adaptive-control baselines of seed A §4.2: MRAC, AIC and BAC
+(ccm.control.baselines.mrac/aic/bac).
 
 Unit checks of the implemented equations without a simulator, then closed-loop checks on the
 pymunk world with the shipped (tuned) configs.
@@ -13,17 +14,17 @@ import numpy as np
 import pytest
 from omegaconf import DictConfig
 
-from ccm.control.aic import AIC
-from ccm.control.bac import BAC
 from ccm.control.base import Controller
+from ccm.control.baselines.aic import AIC
+from ccm.control.baselines.bac import BAC
+from ccm.control.baselines.mrac import MRAC
 from ccm.control.impedance import FixedImpedance
-from ccm.control.mrac import MRAC
 from ccm.control.registry import make_controller
-from ccm.errors import ConfigError, to_plain
-from ccm.runner import Components, build_components
-from ccm.sim.pymunk2d import Pymunk2D
+from ccm.core.errors import ConfigError, to_plain
+from ccm.core.types import Observation, TargetSample
+from ccm.experiment.runner import Components, build_components
+from ccm.sim.pymunk.backend import Pymunk2D
 from ccm.tasks.task import load_task
-from ccm.types import Observation, TargetSample
 
 Composer = Callable[[Sequence[str]], DictConfig]
 DT = 0.001

@@ -1,4 +1,5 @@
-"""Pins on the verdict rules of ``ccm.claims`` (issue #18, item 7, "Nothing else pins these").
+"""Pins on the verdict rules of ``ccm.reporting.claims`` (issue #18, item 7, "Nothing else pins
+these").
 
 A bound or ratio that is read loosely turns a failing claim into a reproduced one. These tests
 put the compared quantity just inside and just outside each rule's ``value`` and check that
@@ -13,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from ccm.claims import evaluate, parse_claim
+from ccm.reporting.claims import evaluate, parse_claim
 
 SEEDS = 5  # the papers' experiments sweep seeds 0-4
 
@@ -107,7 +108,7 @@ def test_a_requirement_holds_its_upper_bound() -> None:
 def test_the_interval_is_students_t_with_the_sample_std() -> None:
     """Five margins 1, 2, 3, 4, 5: mean 3, sample std sqrt(2.5), t(4) = 2.776, half-width
     2.776 sqrt(2.5) / sqrt(5) = 1.963 (a quantile one row off, or ddof 0, changes it)."""
-    from ccm.claim_stats import mean_ci, t95
+    from ccm.reporting.claim_stats import mean_ci, t95
 
     assert t95(5) == pytest.approx(2.776) and t95(2) == pytest.approx(12.706)
     mean, ci = mean_ci([1.0, 2.0, 3.0, 4.0, 5.0])

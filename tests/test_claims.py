@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from ccm.claims import evaluate, load_claims, parse_claim
 from ccm.cli import group_options
-from ccm.errors import ConfigError
+from ccm.core.errors import ConfigError
+from ccm.reporting.claims import evaluate, load_claims, parse_claim
 
 CLAIMS = Path(__file__).resolve().parents[1] / "experiments" / "claims.yaml"
 
@@ -208,7 +208,7 @@ def test_heavy_tailed_margins_are_judged_by_the_sign_test() -> None:
     """Five seeds that all hold, one by far more: the t-interval would cross zero, the sign
     test (p = 1/32) reproduces, and the report names the rule; four of five hold: p = 6/32,
     partially."""
-    from ccm.claim_stats import decide, sign_test_p
+    from ccm.reporting.claim_stats import decide, sign_test_p
 
     assert sign_test_p(5, 5) == pytest.approx(1 / 32) and sign_test_p(4, 5) == pytest.approx(6 / 32)
     assert sign_test_p(0, 5) == 1.0
@@ -227,7 +227,7 @@ def test_run_info_reference_reads_the_wall_clock_facts(tmp_path: Path) -> None:
     collect; without the file the claim is not measured."""
     import json
 
-    from ccm.report import collect
+    from ccm.reporting.report import collect
 
     c = parse_claim(
         {**LESS, "compare": "within", "value": 3300.0, "tolerance": 0.5, "b": None,

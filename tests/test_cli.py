@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from ccm.metrics import BASE_METRICS
-from ccm.timeseries import read_timeseries, trial_path
+from ccm.core.timeseries import read_timeseries, trial_path
+from ccm.metrics.trial import BASE_METRICS
 
 CCM = str(Path(sys.executable).parent / "ccm")
 
@@ -148,7 +148,7 @@ def test_list_help_and_unknown_command(tmp_path: Path) -> None:
 
 _BLAS_PROBE = """
 import json, sys
-import ccm.runner
+import ccm.experiment.runner
 from threadpoolctl import threadpool_info
 from ccm.cli import main
 
@@ -158,7 +158,7 @@ def probe(cfg, compose, out_dir, **kwargs):
     print("BLAS-THREADS", json.dumps(threads))
     return {"status": "ok", "conditions": {}, "trials": []}
 
-ccm.runner.run_experiment = probe
+ccm.experiment.runner.run_experiment = probe
 sys.exit(main(["run", "experiment=smoke", "hydra.run.dir=" + sys.argv[1]]))
 """
 

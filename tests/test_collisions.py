@@ -1,4 +1,5 @@
-"""Tests for ccm.learn.collisions (seed A §3.3: force spike + loss of velocity = collision)."""
+"""Tests for ccm.learn.contact.collisions (seed A §3.3: force spike + loss of velocity =
+collision)."""
 
 from __future__ import annotations
 
@@ -8,9 +9,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.learn.collisions import CollisionDetector, CollisionEvent
-from ccm.types import Observation
+from ccm.core.errors import ConfigError
+from ccm.core.types import Observation
+from ccm.learn.contact.collisions import CollisionDetector, CollisionEvent
 
 DT = 0.001  # s, 1 kHz control
 STEP_TOL = DT + 1e-9  # s: "± 1 step"
@@ -302,7 +303,7 @@ def test_invalid_samples_name_their_key() -> None:
 
 def test_pybullet_press_slide_detects_the_table_touch_only(composer: Any) -> None:
     pytest.importorskip("pybullet")
-    from ccm.runner import build_components, run_trial
+    from ccm.experiment.runner import build_components, run_trial
 
     cfg = composer(["sim=pybullet3d", "task=press_slide_3d", "controller=fixed_impedance_high"])
     comp = build_components(cfg)

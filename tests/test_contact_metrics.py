@@ -10,11 +10,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ccm.contact_metrics import contact_metrics
-from ccm.errors import ConfigError
-from ccm.filters import derivatives
-from ccm.metrics import EXTRA_METRICS, compute_extra_metrics
-from ccm.plots import write_figures
+from ccm.core.errors import ConfigError
+from ccm.core.filters import derivatives
+from ccm.metrics.contacts import contact_metrics
+from ccm.metrics.trial import EXTRA_METRICS, compute_extra_metrics
+from ccm.plots.run import write_figures
 from ccm.tasks.task import load_task
 
 DT = 0.001
@@ -293,7 +293,7 @@ def test_belief_metrics_from_the_controller_report() -> None:
 
 
 def test_contact_table_has_a_row_per_trial_and_believed_contact() -> None:
-    from ccm.contact_metrics import contact_table
+    from ccm.metrics.contacts import contact_table
 
     trial = {"condition": "full", "trial": 1, "pattern_time_s": 20.0, "transition_time_s": 5.0,
              "contact_error_m_table": 0.001, "contact_std_m_table": 0.004,

@@ -10,7 +10,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 from ccm.cli import config_dir
-from ccm.control.contact_regions import (
+from ccm.control.adaptive.contact_regions import (
     Pass,
     approach_passes,
     in_plan_order,
@@ -18,8 +18,8 @@ from ccm.control.contact_regions import (
     speed_pieces,
     to_segment_end,
 )
-from ccm.learn.contacts import ContactBelief
-from ccm.runner import build_components, trial_seed
+from ccm.experiment.runner import build_components, trial_seed
+from ccm.learn.contact.contacts import ContactBelief
 
 EYE = np.eye(2)
 

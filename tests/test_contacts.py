@@ -1,4 +1,4 @@
-"""Tests for ccm.learn.contacts (seed A §3.3 contact beliefs, Eq. 9 approach velocities)."""
+"""Tests for ccm.learn.contact.contacts (seed A §3.3 contact beliefs, Eq. 9 approach velocities)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.learn.contacts import ApproachVelocityModel, ContactBelief, ContactMap
+from ccm.core.errors import ConfigError
+from ccm.learn.contact.contacts import ApproachVelocityModel, ContactBelief, ContactMap
 
 
 def spd(rng: np.random.Generator, d: int, scale: float) -> np.ndarray:

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from ccm.control.registry import make_controller
-from ccm.errors import to_plain
-from ccm.runner import build_components
+from ccm.core.errors import to_plain
+from ccm.core.types import Command, Observation
+from ccm.experiment.runner import build_components
+from ccm.experiment.user_configs import group_options
 from ccm.sim import BACKENDS
-from ccm.types import Command, Observation
-from ccm.user_configs import group_options
 
 #: a task per backend for the checks (2D: springs; 3D: table contact)
 TASK = {"pymunk2d": "multi_spring", "pybullet3d": "press_slide_3d"}

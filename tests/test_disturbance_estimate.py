@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from ccm.control.disturbance_estimate import alpha_from_power, high_freq_power
-from ccm.control.gp_mpc import GPMPC
-from ccm.errors import ConfigError
-from ccm.types import Observation, TargetSample
+from ccm.control.mpc.disturbance_estimate import alpha_from_power, high_freq_power
+from ccm.control.mpc.gp_mpc import GPMPC
+from ccm.core.errors import ConfigError
+from ccm.core.types import Observation, TargetSample
 
 DT = 1e-3
 T = np.arange(0.0, 4.0, DT)

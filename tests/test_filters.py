@@ -1,11 +1,11 @@
-"""The causal low-pass (:func:`ccm.filters.lowpass_sequence`) is its recursion, exactly."""
+"""The causal low-pass (:func:`ccm.core.filters.lowpass_sequence`) is its recursion, exactly."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from ccm.filters import first_order_alpha, lowpass_sequence
+from ccm.core.filters import first_order_alpha, lowpass_sequence
 
 
 def recursion(x: np.ndarray, alpha: float) -> np.ndarray:

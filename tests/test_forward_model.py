@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.learn.forecast import ForecastBuffer, horizon_steps
-from ccm.learn.forward_model import (
+from ccm.core.errors import ConfigError
+from ccm.learn.mixtures.forecast import ForecastBuffer, horizon_steps
+from ccm.learn.mixtures.forward_model import (
     FrozenGMMForwardModel,
     IncrementalForwardModel,
     magnitudes,

@@ -1,10 +1,11 @@
-"""The forward-model horizon study (ccm/forward_model_study.py, issue #16) on synthetic data."""
+"""The forward-model horizon study (ccm/analyses/forward_model_study.py, issue #16) on synthetic
+data."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ccm.forward_model_study import evaluate
+from ccm.analyses.forward_model_study import evaluate
 
 
 def drag_states(n: int, c_end: float, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -17,10 +17,10 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import DictConfig
 
-from ccm.analyses import run as run_experiment
+from ccm.analyses.dispatch import run as run_experiment
 from ccm.cli import config_dir
-from ccm.errors import ConfigError
-from ccm.load import load_run
+from ccm.core.errors import ConfigError
+from ccm.reporting.load import load_run
 
 BASE = [
     "experiment=gp_contact_models",

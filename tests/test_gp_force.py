@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.learn.gp_force import GPForceModel, GPForceModels
+from ccm.core.errors import ConfigError
+from ccm.learn.gp.gp_force import GPForceModel, GPForceModels
 
 K_CONTACT = 45_000.0  # N/m, seed B's 45 N/mm
 X_CONTACT = 0.3

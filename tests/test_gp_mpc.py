@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.control.admittance import rollout
-from ccm.control.gp_mpc import GPMPC
-from ccm.control.gp_mpc_problem import GPMPCProblem, Weights
-from ccm.errors import ConfigError
-from ccm.learn.gp_force import GPForceModels
-from ccm.types import Observation, TargetSample
+from ccm.control.mpc.admittance import rollout
+from ccm.control.mpc.gp_mpc import GPMPC
+from ccm.control.mpc.problem import GPMPCProblem, Weights
+from ccm.core.errors import ConfigError
+from ccm.core.types import Observation, TargetSample
+from ccm.learn.gp.gp_force import GPForceModels
 
 K_WALL = 45000.0  # N/m, seed B's medium environment
 
@@ -142,7 +142,7 @@ def test_propagation_matches_monte_carlo() -> None:
     f_mu, f_var = np.array([4.0, -2.0]), np.array([9.0, 1.0])
     mus, sigmas = rollout(m, d, ts, np.zeros(4), np.zeros((4, 4)), np.zeros(2),
                           lambda x: (f_mu, f_var), steps)  # fmt: skip
-    from ccm.control.admittance import system_matrices
+    from ccm.control.mpc.admittance import system_matrices
 
     a, b = system_matrices(m, d, ts)
     xi = np.zeros((20000, 4))
@@ -165,7 +165,7 @@ def test_propagation_matches_monte_carlo_with_a_pose_dependent_force() -> None:
         return k * (g - np.asarray(x)), var
 
     mus, sigmas = rollout(m, d, ts, np.zeros(4), np.zeros((4, 4)), np.zeros(2), field, steps)
-    from ccm.control.admittance import system_matrices
+    from ccm.control.mpc.admittance import system_matrices
 
     a, b = system_matrices(m, d, ts)
     xi = np.zeros((20000, 4))

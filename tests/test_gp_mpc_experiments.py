@@ -1,5 +1,5 @@
 """Seed B experiments end to end, shortened: demonstrations -> GP fit -> MPC trials, with the
-metrics of ccm/mpc_metrics.py and a byte-identical summary for the same seed."""
+metrics of ccm/metrics/mpc.py and a byte-identical summary for the same seed."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ccm.mpc_metrics import goal_metrics
-from ccm.runner import run_experiment
+from ccm.experiment.runner import run_experiment
+from ccm.metrics.mpc import goal_metrics
 
 GOALS = [
     "experiment=mpc_goal_inference",

@@ -93,7 +93,7 @@ def test_missing_data_from_is_one_line(tmp_path: Path) -> None:
 def test_lag_is_positive_when_the_truth_lags_the_prediction() -> None:
     import numpy as np
 
-    from ccm.h3_scores import lag
+    from ccm.analyses.h3_scores import lag
 
     t = np.arange(0.0, 8.0, 0.01)
     pred = np.tanh(t - 3.0)[:, None]
@@ -107,7 +107,7 @@ def test_single_friction_set_reuses_the_multi_friction_trials() -> None:
     is recorded anew when medium_multi has too few of them."""
     import numpy as np
 
-    from ccm.h3 import _single_friction_subset
+    from ccm.analyses.h3 import _single_friction_subset
 
     multi = [{"wall_friction": np.array(mu), "k": i} for i, mu in enumerate([0.1, 0.6, 0.6, 0.7])]
     h3 = {"single_friction": 0.6, "single_trials": 2}
@@ -130,7 +130,7 @@ def test_a_magnitude_is_put_along_the_latest_force() -> None:
     """F̂ = ‖F̂‖ F_t / ‖F_t‖ (the igmm row's F_y, seed A Fig. 14b); no direction: zero."""
     import numpy as np
 
-    from ccm.h3_scores import along_latest
+    from ccm.analyses.h3_scores import along_latest
 
     got = along_latest(np.array([10.0, 2.0]), np.array([[0.0, 3.0, 4.0], [0.0, 0.0, 0.0]]))
     assert got == pytest.approx(np.array([[0.0, 6.0, 8.0], [0.0, 0.0, 0.0]]))
@@ -139,7 +139,7 @@ def test_a_magnitude_is_put_along_the_latest_force() -> None:
 def test_norm_scores_of_persistence_score_f_y_against_the_last_f_y() -> None:
     import numpy as np
 
-    from ccm.h3_scores import norm_force_scores
+    from ccm.analyses.h3_scores import norm_force_scores
 
     rng = np.random.default_rng(0)
     f = rng.normal(size=(50, 3)) + np.array([0.0, 5.0, -10.0])
@@ -156,7 +156,7 @@ def test_gp_scores_of_f_y_after_the_wall_contact() -> None:
     wall steps only (seed A Fig. 13)."""
     import numpy as np
 
-    from ccm.h3_scores import gp_force_scores
+    from ccm.analyses.h3_scores import gp_force_scores
 
     truth = np.zeros((10, 3))
     mean = np.zeros((10, 3))
@@ -173,8 +173,8 @@ def test_gp_scores_of_f_y_after_the_wall_contact() -> None:
 def test_forward_model_horizon_must_be_one_h3_step() -> None:
     from types import SimpleNamespace
 
-    from ccm.errors import ConfigError
-    from ccm.h3 import _check_horizon
+    from ccm.analyses.h3 import _check_horizon
+    from ccm.core.errors import ConfigError
 
     _check_horizon(SimpleNamespace(horizon_s=0.01), 0.01 + 1e-12)
     with pytest.raises(ConfigError, match="h3.forward_model.horizon_s"):

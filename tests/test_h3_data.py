@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.h3_data import FIELDS, collect, contact_modes, load_dataset, save_dataset
+from ccm.analyses.h3_data import FIELDS, collect, contact_modes, load_dataset, save_dataset
+from ccm.core.errors import ConfigError
 
 BASE = ["experiment=single", "sim=pybullet3d", "task=table_wall", "controller=fixed_impedance_high"]
 

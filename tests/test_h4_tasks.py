@@ -17,11 +17,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.learn.contacts import ContactMap
-from ccm.runner import build_components, run_trial
+from ccm.core.errors import ConfigError
+from ccm.core.types import Command, Observation, StepInfo
+from ccm.experiment.runner import build_components, run_trial
+from ccm.learn.contact.contacts import ContactMap
 from ccm.tasks.task import load_task
-from ccm.types import Command, Observation, StepInfo
 
 TASKS = ("h4_collisions", "h4_contact_learning", "h4_impactless")
 # the compliant 45 N/mm tool contact the H4 experiments use (configs/experiment/h4_*.yaml)

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ccm.mpc_metrics import gp_mpc_metrics
-from ccm.runner import run_experiment
+from ccm.experiment.runner import run_experiment
+from ccm.metrics.mpc import gp_mpc_metrics
 
 BASE = [
     "experiment=contact_head_to_head",

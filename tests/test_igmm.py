@@ -9,9 +9,9 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.learn.gmr import GMRConditional, gmr_predict
-from ccm.learn.igmm import IGMM, chi2_quantile
+from ccm.core.errors import ConfigError
+from ccm.learn.mixtures.gmr import GMRConditional, gmr_predict
+from ccm.learn.mixtures.igmm import IGMM, chi2_quantile
 
 IN6, OUT6 = [0, 1, 2, 3], [4, 5]
 SIG6 = [0.01, 0.005, 0.5, 0.03, 0.5, 0.03]
@@ -57,7 +57,8 @@ def random_mixture(rng: np.random.Generator, k: int, d: int):
 
 
 def reference_igmm(X, sigma_init, q, v_min, sp_min, floor):
-    """Engel & Heinen 2010 as documented in ccm.learn.igmm (no overflow), slow and plain."""
+    """Engel & Heinen 2010 as documented in ccm.learn.mixtures.igmm (no overflow), slow and
+    plain."""
     d = X.shape[1]
     thr = chi2_quantile(q, d)
     mus, covs, sps, vs = [], [], [], []

@@ -11,8 +11,8 @@ from ccm.control.impedance import (
     impedance_term,
 )
 from ccm.control.registry import make_controller
-from ccm.errors import ConfigError
-from ccm.types import Observation, TargetSample
+from ccm.core.errors import ConfigError
+from ccm.core.types import Observation, TargetSample
 
 
 def obs(pos=(0.0, 0.0), vel=(0.0, 0.0), force=(0.0, 0.0)) -> Observation:

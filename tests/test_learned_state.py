@@ -16,10 +16,10 @@ from omegaconf import DictConfig
 
 from ccm.control.base import Controller
 from ccm.control.registry import make_controller
-from ccm.errors import ConfigError, to_plain
-from ccm.learned_state import STATE_FORMAT
-from ccm.runner import plan_experiment, save_learned_states
-from ccm.types import Observation, TargetSample
+from ccm.core.errors import ConfigError, to_plain
+from ccm.core.types import Observation, TargetSample
+from ccm.experiment.learned_state import STATE_FORMAT
+from ccm.experiment.runner import plan_experiment, save_learned_states
 
 Composer = Callable[[Sequence[str]], DictConfig]
 DOWN = np.array([0.0, -1.0])

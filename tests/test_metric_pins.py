@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from omegaconf import DictConfig
 
-from ccm.contact_metrics import contact_metrics
-from ccm.metrics import compute_extra_metrics, lag_metrics
+from ccm.metrics.contacts import contact_metrics
+from ccm.metrics.trial import compute_extra_metrics, lag_metrics
 
 DT = 0.001  # s, control step of the synthetic logs
 #: seed A §4.1: the forward model is trained while the viscosity ramps 0 -> 80 N s/m

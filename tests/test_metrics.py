@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.filters import derivatives, lowpass
-from ccm.metrics import (
+from ccm.core.filters import derivatives, lowpass
+from ccm.metrics.trial import (
     aggregate,
     force_prediction_metrics,
     learning_curve,

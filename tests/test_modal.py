@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.control.modal import FREE, ModalAVIC
-from ccm.errors import ConfigError
-from ccm.types import Observation, TargetSample
+from ccm.control.adaptive.modal import FREE, ModalAVIC
+from ccm.core.errors import ConfigError
+from ccm.core.types import Observation, TargetSample
 
 DOWN = np.array([0.0, -1.0])
 BATCH = 40
@@ -205,8 +205,8 @@ def test_bad_settings_name_the_key(modes: dict, key: str) -> None:
 
 def _closed_loop_metrics(composer, overrides: list[str], trials: int = 1) -> list[dict]:
     """Run ``trials`` full trials (modes kept across them) and return the mode metrics."""
-    from ccm.metrics import compute_extra_metrics
-    from ccm.runner import build_components, run_trial
+    from ccm.experiment.runner import build_components, run_trial
+    from ccm.metrics.trial import compute_extra_metrics
 
     cfg = composer(["experiment=single", "controller=avic_modes", *overrides])
     comp = build_components(cfg)

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from omegaconf import DictConfig
 
-from ccm.errors import ConfigError
-from ccm.metrics import EXTRA_METRICS
-from ccm.mode_metrics import KNOWN, MODE_METRIC_KEYS, NEW, mode_metrics, true_surface_ids
-from ccm.plots import write_figures
+from ccm.core.errors import ConfigError
+from ccm.metrics.modes import KNOWN, MODE_METRIC_KEYS, NEW, mode_metrics, true_surface_ids
+from ccm.metrics.trial import EXTRA_METRICS
+from ccm.plots.run import write_figures
 
 DT = 0.001
 PARAMS = {"transition_pre_s": 0.05, "transition_tolerance_s": 0.25, "high_stiffness_Npm": 1650.0}

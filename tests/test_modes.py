@@ -1,4 +1,4 @@
-"""Tests for ccm.learn.modes (seed A §3.2, Eq. 7, Algorithm 1)."""
+"""Tests for ccm.learn.contact.modes (seed A §3.2, Eq. 7, Algorithm 1)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.learn.modes import ModeClassifier, ModeDecision, TransitionTrigger, mode_features
+from ccm.core.errors import ConfigError
+from ccm.learn.contact.modes import ModeClassifier, ModeDecision, TransitionTrigger, mode_features
 
 KEY = "controller.modes.classifier"
 

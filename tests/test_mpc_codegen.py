@@ -1,4 +1,4 @@
-"""Compiled IPOPT solvers (ccm.control.mpc_codegen): same solution, disk cache, fallback."""
+"""Compiled IPOPT solvers (ccm.control.mpc.codegen): same solution, disk cache, fallback."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ccm.control import mpc_codegen as mc
+from ccm.control.mpc import codegen as mc
 
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")
 
@@ -89,9 +89,9 @@ def test_limited_memory_hessian_compiles_without_hessian(tmp_path):
 def test_gp_mpc_compiled_same_solution_along_a_closed_loop(tmp_path, monkeypatch):
     """GPMPCProblem with codegen gives the uncompiled solutions (to 1e-8) over warm starts."""
     monkeypatch.setenv(mc.CACHE_ENV, str(tmp_path))
-    from ccm.control.admittance import system_matrices
-    from ccm.control.gp_mpc_problem import GPMPCProblem, Weights
-    from ccm.learn.gp_force import GPForceModels
+    from ccm.control.mpc.admittance import system_matrices
+    from ccm.control.mpc.problem import GPMPCProblem, Weights
+    from ccm.learn.gp.gp_force import GPForceModels
 
     rng = np.random.default_rng(3)
     n, pts = 2, 8

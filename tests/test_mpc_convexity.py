@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.mpc_convexity import (
+from ccm.analyses.mpc_convexity import (
     INTEGRATORS,
     OBJECTIVES,
     _settings,
@@ -17,6 +16,7 @@ from ccm.mpc_convexity import (
     indefinite_fraction,
     rank_corr,
 )
+from ccm.core.errors import ConfigError
 
 SETTINGS = {"ts": 0.01, "mass": 5.0, "damping": 200.0, "sigma_x": 1e-6, "sigma_v": 1e-4,
             "q": [1.0, 1.0], "sigma_f_range": [1e-4, 1e4], "n_points": 9}  # fmt: skip

@@ -14,7 +14,7 @@ import scipy.signal
 import scipy.special
 import scipy.stats
 
-from ccm.control.mpc_terms import (
+from ccm.control.mpc.terms import (
     FOREARM,
     UPPER_ARM,
     arm_fk,
@@ -28,7 +28,7 @@ from ccm.control.mpc_terms import (
     h2_norm_sq,
     joint_torque_cost,
 )
-from ccm.errors import ConfigError
+from ccm.core.errors import ConfigError
 
 SH = np.array([0.1, -0.2, 1.4])  # a shoulder somewhere in the world
 L = UPPER_ARM + FOREARM

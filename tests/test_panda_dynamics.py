@@ -1,11 +1,11 @@
-"""Pinocchio's model of the Panda (:mod:`ccm.sim.panda_dynamics`) against PyBullet's queries.
+"""Pinocchio's model of the Panda (:mod:`ccm.sim.pybullet.dynamics`) against PyBullet's queries.
 
 At 20 seeded random joint configurations within the URDF's limits and velocities up to
 ±2 rad/s (about the Panda's 2.2-2.6 rad/s joint speed limits), every term of the torque
 law agrees with what the PyBullet path computes: M with ``calculateMassMatrix``, J with
 ``calculateJacobian`` at the tool point, h with ``calculateInverseDynamics(q, q̇, 0)``, J̇ q̇
 with a central difference of PyBullet's Jacobian along q̇, M⁻¹ Jᵀ and Λ with
-:func:`ccm.sim.pybullet_robot.task_inertia`.
+:func:`ccm.sim.pybullet.robot.task_inertia`.
 
 Tolerances: absolute 1e-8 for M [kg m²], J [m/rad, 1], h [N m] and M⁻¹ Jᵀ: their entries
 reach ~3, 1, 50 and 250 here, so 1e-8 absolute is a relative 1e-8 or tighter, and the two
@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ccm.sim.panda_dynamics import PandaDynamics, link_inertials, robot_dynamics
-from ccm.sim.pybullet_robot import (
+from ccm.sim.pybullet.dynamics import PandaDynamics, link_inertials, robot_dynamics
+from ccm.sim.pybullet.robot import (
     GRAVITY,
     inverse_dynamics,
     load_robot,
@@ -35,7 +35,7 @@ from ccm.sim.pybullet_robot import (
     tool_jacobian,
     tool_point_in_link,
 )
-from ccm.sim.pybullet_scene import PyBullet3DConfig
+from ccm.sim.pybullet.scene import PyBullet3DConfig
 
 pytest.importorskip("pybullet")
 pytest.importorskip("pinocchio")
@@ -176,7 +176,7 @@ def test_the_torque_bench_times_both_paths() -> None:
 
 
 def test_compiled_torque_law_matches_the_numpy_law(robot: Robot) -> None:
-    """:func:`ccm.sim._pybullet_kernels.torque_law` on :meth:`PandaDynamics.torque_terms`
+    """:func:`ccm.sim.pybullet._kernels.torque_law` on :meth:`PandaDynamics.torque_terms`
     against the torque law written in numpy on :meth:`PandaDynamics.compute`'s terms (the
     form ``PyBullet3D._torques_pybullet`` uses): ``τ = Jᵀ [f; m + m_hold] + h − Jᵀ Λ J̇ q̇ +
     N τ₀``, with a random wrench, orientation hold and posture term at every sample.
@@ -184,7 +184,7 @@ def test_compiled_torque_law_matches_the_numpy_law(robot: Robot) -> None:
     Tolerance: relative 1e-9 of max |τ|. The two compute Λ by different Cholesky codes (plain
     loops vs LAPACK), so they differ by rounding times cond(J M⁻¹ Jᵀ) (up to ~7e5 here).
     """
-    from ccm.sim._pybullet_kernels import orientation_error, torque_law
+    from ccm.sim.pybullet._kernels import orientation_error, torque_law
 
     rng = np.random.default_rng(7)
     worst = 0.0

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from ccm.paper import PAPER_EXPERIMENTS, main, sweep_command
+from ccm.reporting.paper import PAPER_EXPERIMENTS, main, sweep_command
 
 
 def test_paper_pipeline_on_one_experiment(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.claims import evaluate, parse_claim
-from ccm.errors import ConfigError
-from ccm.mpc_metrics import gp_mpc_metrics
+from ccm.core.errors import ConfigError
+from ccm.metrics.mpc import gp_mpc_metrics
+from ccm.reporting.claims import evaluate, parse_claim
 
 SHOULDER = [0.0, -0.3, 0.3]  # m; the tool at (x, 0, 0) is sqrt(x^2 + 0.18) m away
 FAR = {"human_shoulder": SHOULDER, "far_from_human_m": 0.5}  # far for x >= sqrt(0.07) = 0.2646

@@ -1,4 +1,4 @@
-"""The contracts of :mod:`ccm.protocols` hold for what ccm builds: every forward-model kind
+"""The contracts of :mod:`ccm.core.protocols` hold for what ccm builds: every forward-model kind
 is a ForwardModel, planned and re-timed patterns are Patterns, every extra metric is a
 Metric (issue #21)."""
 
@@ -9,11 +9,11 @@ import inspect
 import numpy as np
 import pytest
 
-from ccm.learn.forward_model import FORWARD_MODELS, make_forward_model
-from ccm.metrics import EXTRA_METRICS
-from ccm.protocols import ForwardModel, Metric, Pattern
-from ccm.runner import build_components
-from ccm.types import TargetSample
+from ccm.core.protocols import ForwardModel, Metric, Pattern
+from ccm.core.types import TargetSample
+from ccm.experiment.runner import build_components
+from ccm.learn.mixtures.forward_model import FORWARD_MODELS, make_forward_model
+from ccm.metrics.trial import EXTRA_METRICS
 
 
 @pytest.mark.parametrize("kind", FORWARD_MODELS)

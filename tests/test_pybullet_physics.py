@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from ccm.control.impedance import FixedImpedance
-from ccm.errors import ConfigError, SimulationDiverged
+from ccm.core.errors import ConfigError, SimulationDiverged
+from ccm.core.types import Command, TargetSample
 from ccm.sim import make_sim
-from ccm.sim.pybullet3d import DOWN, PyBullet3D, orientation_error
-from ccm.types import Command, TargetSample
+from ccm.sim.pybullet.backend import DOWN, PyBullet3D, orientation_error
 
 pytest.importorskip("pybullet")
 
@@ -285,7 +285,7 @@ def test_jacobian_is_the_tool_points() -> None:
     """The torque loop's Jacobian is the tool point's: J matches a central difference of the
     tool point's position and orientation along each joint (step 1e-6 rad: truncation
     ~1e-12, rounding ~1e-10, so 1e-8). The centre of mass, 2 cm above, is off by 0.02."""
-    from ccm.sim.pybullet_robot import set_joint_positions, tool_point_state
+    from ccm.sim.pybullet.robot import set_joint_positions, tool_point_state
 
     sim = make()
     try:
@@ -445,9 +445,9 @@ def test_the_table_friction_ramps_across_the_tool_face(mode: str) -> None:
 
 
 def press_slide_trial(**sim_cfg: Any) -> tuple[dict[str, np.ndarray], float]:
-    """A 2.5 s trial through ccm.runner with FixedImpedance: approach, press 10 N, slide
+    """A 2.5 s trial through ccm.experiment.runner with FixedImpedance: approach, press 10 N, slide
     15 cm across a patch. Returns the recorded arrays and the wall time [s]."""
-    from ccm.runner import Components, run_trial
+    from ccm.experiment.runner import Components, run_trial
     from ccm.tasks.task import load_task
 
     down = {"direction": [0.0, 0.0, -1.0], "magnitude": 10.0}
@@ -499,7 +499,8 @@ def press_slide_trial(**sim_cfg: Any) -> tuple[dict[str, np.ndarray], float]:
 
 
 def test_runner_trial_press_and_slide_3d() -> None:
-    """End to end through ccm.runner: approach, press 10 N, slide 15 cm across a patch."""
+    """End to end through ccm.experiment.runner: approach, press 10 N, slide 15 cm across a
+    patch."""
     a, wall = press_slide_trial()
     sliding = (a["t"] > 1.2) & (a["t"] < 2.4)
     err = np.abs(a["force_z"][sliding] - a["true_force_z"][sliding])

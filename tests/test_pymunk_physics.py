@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from ccm.errors import ConfigError, SimulationDiverged
-from ccm.sim.pymunk2d import Pymunk2D, Pymunk2DConfig
-from ccm.sim.scene import SceneSpec
+from ccm.core.errors import ConfigError, SimulationDiverged
+from ccm.core.types import Command, Observation, StepInfo
+from ccm.sim.pymunk.backend import Pymunk2D, Pymunk2DConfig
+from ccm.sim.pymunk.scene import SceneSpec
 from ccm.sim.sensor import FTSensor, SensorConfig
-from ccm.types import Command, Observation, StepInfo
 
 ZERO_T = np.zeros(1)
 EE_HALF = 0.025  # half size of the default 0.05 m end-effector box

@@ -1,4 +1,4 @@
-"""The rail-task metrics of seed B §6.2 (ccm/mpc_metrics.py) on small synthetic logs, and
+"""The rail-task metrics of seed B §6.2 (ccm/metrics/mpc.py) on small synthetic logs, and
 the mpc_rail configuration (issue #18)."""
 
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.mpc_metrics import gp_mpc_metrics, rail_distance, rail_metrics
+from ccm.core.errors import ConfigError
+from ccm.metrics.mpc import gp_mpc_metrics, rail_distance, rail_metrics
 
 PARAMS = {
     "rail_point": [0.0, 0.10],

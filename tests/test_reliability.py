@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 
 import ccm.cli as cli
-import ccm.user_configs as user_configs
+import ccm.experiment.user_configs as user_configs
 
 CCM = str(Path(sys.executable).parent / "ccm")
 NOISE = (re.compile(r"^pybullet build time:"),)
@@ -491,7 +491,7 @@ experiment:
 """
 
 RUN_WITH_CONFIGS = (
-    "import sys; from pathlib import Path; import ccm.cli as c, ccm.user_configs as u; "
+    "import sys; from pathlib import Path; import ccm.cli as c, ccm.experiment.user_configs as u; "
     "u.config_dir = lambda: Path(sys.argv[1]); sys.exit(c.main(sys.argv[2:]))"
 )
 

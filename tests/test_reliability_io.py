@@ -18,8 +18,8 @@ from test_reliability import ccm as ccm_process
 from test_reliability import check_one_line, meaningful, run_in_process
 
 import ccm.cli as cli
-import ccm.user_configs as user_configs
-from ccm.jobdir import job_dir_name
+import ccm.experiment.user_configs as user_configs
+from ccm.experiment.jobdir import job_dir_name
 
 FAST = ["experiment=smoke", "experiment.fast=true", "experiment.figures=false"]
 ROOT = os.geteuid() == 0  # root writes into read-only directories: those cases need a user
@@ -246,12 +246,12 @@ def test_report_that_cannot_be_written_is_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The write itself failing (a full disk; read-only as root cannot be staged)."""
-    import ccm.report
+    import ccm.reporting.report
 
     def refuse(path: Path, text: str) -> None:
         raise PermissionError(13, "Permission denied", str(path))
 
-    monkeypatch.setattr(ccm.report, "write_atomic", refuse)
+    monkeypatch.setattr(ccm.reporting.report, "write_atomic", refuse)
     (tmp_path / "r").mkdir()
     (tmp_path / "r" / "summary.json").write_text(GOOD)
     code, _, err = run_in_process(["report", str(tmp_path)], capsys)

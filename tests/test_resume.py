@@ -101,7 +101,7 @@ def test_sigkill_then_rerun_equals_an_uninterrupted_sweep(tmp_path: Path, launch
     assert not [p for p in workers if _running(p)]
     finished = {p: p.stat().st_mtime_ns for p in _ok(cut)}
     assert 1 <= len(finished) < 4, "the kill should land mid-sweep"
-    # what a kill during an atomic write leaves (ccm.records.atomic_path): the resume cleans it
+    # what a kill during an atomic write leaves (ccm.core.records.atomic_path): the resume cleans it
     unfinished = [j for j in cut.glob("*") if j.is_dir() and j / "summary.json" not in finished]
     stale = [d / ".summary.json.x1y2z3.tmp" for d in (*unfinished, *[p.parent for p in finished])]
     for path in stale:
@@ -123,7 +123,7 @@ def test_sigkill_then_rerun_equals_an_uninterrupted_sweep(tmp_path: Path, launch
 
 
 def test_atomic_write_leaves_no_temp_file_and_a_readable_mode(tmp_path: Path) -> None:
-    from ccm.records import write_atomic
+    from ccm.core.records import write_atomic
 
     target = tmp_path / "summary.json"
     write_atomic(target, "{}\n")

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from ccm.errors import ConfigError
+from ccm.core.errors import ConfigError
 from ccm.tasks.retiming import (
     RetimedPattern,
     TimeWarp,

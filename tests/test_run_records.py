@@ -22,7 +22,13 @@ import pytest
 import yaml
 
 import ccm.cli as cli
-from ccm.run_record import RecordRefused, RunLock, clean_stale_temp, config_digest, open_record
+from ccm.experiment.run_record import (
+    RecordRefused,
+    RunLock,
+    clean_stale_temp,
+    config_digest,
+    open_record,
+)
 
 NOISE = (re.compile(r"^pybullet build time:"),)
 FAST = ["experiment.fast=true", "experiment.figures=false"]
@@ -347,7 +353,7 @@ def _cmdline(pid: int) -> str:
 
 def _orphaned_worker(out: str, spawner: int) -> None:
     """A 'sweep worker' whose launcher dies before its job starts (the race of a SIGKILL)."""
-    from ccm.interrupts import RunInterrupted, die_with_launcher, interrupts_raise
+    from ccm.experiment.interrupts import RunInterrupted, die_with_launcher, interrupts_raise
 
     deadline = time.monotonic() + 30.0
     while os.getppid() == spawner and time.monotonic() < deadline:
@@ -366,7 +372,7 @@ def _orphaned_worker(out: str, spawner: int) -> None:
 def _launcher_that_dies(out: str) -> None:
     import multiprocessing
 
-    os.environ["CCM_LAUNCHER_PID"] = str(os.getpid())  # as ccm.interrupts.launcher_env
+    os.environ["CCM_LAUNCHER_PID"] = str(os.getpid())  # as ccm.experiment.interrupts.launcher_env
     multiprocessing.get_context("fork").Process(
         target=_orphaned_worker, args=(out, os.getpid())
     ).start()

@@ -8,15 +8,15 @@ from pathlib import Path
 
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.metrics import check_extra_metrics
-from ccm.runner import (
+from ccm.core.errors import ConfigError
+from ccm.experiment.runner import (
     check_experiment,
     plan_experiment,
     resolve_conditions,
     run_experiment,
     trial_seed,
 )
+from ccm.metrics.trial import check_extra_metrics
 
 PHASES = (
     "experiment.phases=[{name: train, trials: 2,"
@@ -111,7 +111,7 @@ def test_controller_prepare_sets_the_pattern_the_trial_follows(composer) -> None
     """``Controller.prepare`` may return a re-timed pattern (seed A §3.5.2): the runner samples
     it and lengthens the trial by the extra wall time; the default follows P as planned."""
     from ccm.control.impedance import FixedImpedance
-    from ccm.runner import build_components, run_trial
+    from ccm.experiment.runner import build_components, run_trial
     from ccm.tasks.retiming import RetimedPattern, TimeWarp
 
     class HalfSpeed(FixedImpedance):
@@ -137,7 +137,7 @@ def test_controller_prepare_sets_the_pattern_the_trial_follows(composer) -> None
 def test_progress_bar_expect_and_advance_never_pass_100_percent() -> None:
     """The bar's total follows the re-estimate after a trial but never drops below the steps
     done, and a trial running past the total grows it (re-timed trials)."""
-    from ccm.runner import _progress_bar
+    from ccm.experiment.runner import _progress_bar
 
     bar = _progress_bar(100, "test", True)
     try:

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.runner import run_experiment
+from ccm.core.errors import ConfigError
+from ccm.core.timeseries import read_timeseries
+from ccm.experiment.runner import run_experiment
 from ccm.sim.sensor import FTSensor, SensorConfig
-from ccm.timeseries import read_timeseries
 
 FAULTS = [
     "sim.sensor.force_noise_std=0.5",  # x10 the 0.05 N the H1/H2 experiments use

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from ccm.errors import ConfigError
-from ccm.sim.hri_forces import HumanHand
-from ccm.sim.pymunk2d import Pymunk2D
-from ccm.sim.scene import SceneSpec
-from ccm.sim.scene_hri import HumanSpec
-from ccm.types import Command, Observation, StepInfo
+from ccm.core.errors import ConfigError
+from ccm.core.types import Command, Observation, StepInfo
+from ccm.sim.pymunk.backend import Pymunk2D
+from ccm.sim.pymunk.hri import HumanSpec
+from ccm.sim.pymunk.hri_forces import HumanHand
+from ccm.sim.pymunk.scene import SceneSpec
 
 ZERO_T = np.zeros(1)
 DT = 0.001

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
-from ccm.learn.svm_gp import ModalGPDynamics
+from ccm.core.errors import ConfigError
+from ccm.learn.gp.svm_gp import ModalGPDynamics
 
 NOISE = 1e-3
 SPEED = 0.01
@@ -168,7 +168,7 @@ def test_fast_gpr_matches_sklearn_lml_and_gradient(n_out: int, kernel_name: str)
     from sklearn.gaussian_process import GaussianProcessRegressor
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Matern, WhiteKernel
 
-    from ccm.learn._gpr import FastGPR, _constant_rbf_white
+    from ccm.learn.gp._gpr import FastGPR, _constant_rbf_white
 
     rng = np.random.default_rng(3)
     x = rng.normal(size=(60, 4))

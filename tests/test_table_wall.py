@@ -22,9 +22,9 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from ccm.runner import build_components, run_trial
-from ccm.timeseries import read_timeseries
-from ccm.types import Command, Observation, StepInfo
+from ccm.core.timeseries import read_timeseries
+from ccm.core.types import Command, Observation, StepInfo
+from ccm.experiment.runner import build_components, run_trial
 
 pytest.importorskip("pybullet")
 

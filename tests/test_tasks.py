@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from omegaconf import DictConfig, OmegaConf
 
-from ccm.errors import ConfigError
+from ccm.core.errors import ConfigError
 from ccm.tasks.task import Task, load_task
 
 TASK_DIR = Path(__file__).resolve().parents[1] / "configs" / "task"

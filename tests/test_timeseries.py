@@ -13,10 +13,8 @@ import numpy as np
 import pytest
 
 import ccm
-from ccm.errors import ConfigError
-from ccm.plots_rail import write_rail_figure
-from ccm.runner import check_experiment, run_experiment
-from ccm.timeseries import (
+from ccm.core.errors import ConfigError
+from ccm.core.timeseries import (
     check_bits,
     keep_trial,
     read_timeseries,
@@ -24,6 +22,8 @@ from ccm.timeseries import (
     trial_path,
     write_timeseries,
 )
+from ccm.experiment.runner import check_experiment, run_experiment
+from ccm.plots.rail import write_rail_figure
 
 CCM = str(Path(sys.executable).parent / "ccm")
 #: a quick smoke run: two conditions, trials of 0.05 s, no figures

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ccm.errors import ConfigError
+from ccm.core.errors import ConfigError
 from ccm.tasks.trajectory import (
     ArcSegment,
     HoldSegment,

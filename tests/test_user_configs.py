@@ -1,5 +1,5 @@
-"""A lab's own config directory (issue #19, :mod:`ccm.user_configs`): tasks and experiments
-outside the package, named through Hydra's ``--config-dir`` / ``-cd`` or
+"""A lab's own config directory (issue #19, :mod:`ccm.experiment.user_configs`): tasks and
+experiments outside the package, named through Hydra's ``--config-dir`` / ``-cd`` or
 ``hydra.searchpath``, work in ``ccm list``, the precheck and the run."""
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ccm.bench.components import components as _components
-from ccm.sim.pybullet_scene import DYNAMICS
+from ccm.sim.pybullet.scene import DYNAMICS
 
 
 def bench_torques(

@@ -10,9 +10,9 @@ Both loops follow the task's pattern P with a plain task-space PD (gains below),
 make the same contacts as ccm's controllers roughly do; the targets are sampled before the
 timing starts (P's own cost is ccm's, not the engine's).
 
-* **pymunk** (:class:`ccm.sim.pymunk2d.PyMunk2D`): per physics step, the body's force from
+* **pymunk** (:class:`ccm.sim.pymunk.backend.PyMunk2D`): per physics step, the body's force from
   the PD, ``space.step``, read its position and velocity.
-* **PyBullet** (:class:`ccm.sim.pybullet3d.PyBullet3D`): per physics step, the calls a
+* **PyBullet** (:class:`ccm.sim.pybullet.backend.PyBullet3D`): per physics step, the calls a
   task-space torque loop on the Panda needs: ``getJointStates``, ``getLinkState`` (the tool
   pose and twist), ``calculateJacobian``, ``calculateMassMatrix``,
   ``calculateInverseDynamics``, then ``τ = Jᵀ F + h`` in plain Python,

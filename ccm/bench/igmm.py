@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.learn.igmm import IGMM
+from ccm.learn.mixtures.igmm import IGMM
 
 #: issue #3 target for update + predict
 TARGET_US = 20.0

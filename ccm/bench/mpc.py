@@ -1,20 +1,20 @@
 """``make bench`` rows for seed B's GP-MPC (issue #7): solve rate of Eq. 13 in a closed loop.
 
 Scenario (synthetic, seeded): a 3-D admittance presses on a wall along x. The GP force
-models (30 points, hinge mean, :class:`ccm.learn.gp_force.GPForceModels`) are fitted to
+models (30 points, hinge mean, :class:`ccm.learn.gp.gp_force.GPForceModels`) are fitted to
 noisy samples of a 15 N/mm wall (the softest of seed B's §6.1 environments) at x = 0 with a
-human pushing 5 N towards it. The MPC (:class:`ccm.control.gp_mpc_problem.GPMPCProblem`,
+human pushing 5 N towards it. The MPC (:class:`ccm.control.mpc.problem.GPMPCProblem`,
 T_s = 10 ms, the bounds and weights of ``configs/controller/gp_mpc.yaml`` plus seed B's
 force-reference target cost, here ‖−10 − f^r_x‖: press with 10 N) starts 2 cm from the
 wall. The plant is the admittance of Eq. 5 driven by the true wall force and a slowly
 varying human force the models do not know (3 N along x, 2 N along y). Each MPC step
 applies the solution's first f^r, M, D for one T_s; an unsuccessful solve is not applied
-(the previous command stays, as in :class:`ccm.control.gp_mpc.GPMPC`) and is counted.
+(the previous command stays, as in :class:`ccm.control.mpc.gp_mpc.GPMPC`) and is counted.
 
 Rows (each ``steps`` warm-started solves, timed with perf_counter around
 ``GPMPCProblem.solve``): horizon 5 and 10 with the well-damped constraint, plain IPOPT
 (casadi's virtual machine, ``expand=True``) and with the NLP functions compiled to C
-(:mod:`ccm.control.mpc_codegen`), plus two IPOPT option variants on the compiled solver.
+(:mod:`ccm.control.mpc.codegen`), plus two IPOPT option variants on the compiled solver.
 Each row's loop runs ``repeats`` times (identical trajectories); the repeat with the lowest
 median counts, since load from other processes only ever slows a repeat down. Rate =
 1 / median solve time. Issue #7's target: ≥ 100 Hz for horizon 5-10 with the well-damped
@@ -65,7 +65,7 @@ OPTION_VARIANTS: dict[str, dict[str, Any]] = {
 
 def synthetic_gp(seed: int, wall: float = 0.0, n_points: int = N_POINTS) -> Any:
     """GP force models fitted to noisy samples of the wall (see the module docstring)."""
-    from ccm.learn.gp_force import GPForceModels
+    from ccm.learn.gp.gp_force import GPForceModels
 
     rng = np.random.default_rng(seed)
     X = rng.uniform(-0.02, 0.02, (n_points, N_DIM))
@@ -92,7 +92,7 @@ def build_problem(
     **features: Any,
 ) -> Any:
     """The benchmark's :class:`GPMPCProblem` (``features``: chance, disturbance, ...)."""
-    from ccm.control.gp_mpc_problem import GPMPCProblem, Weights
+    from ccm.control.mpc.problem import GPMPCProblem, Weights
 
     weights = {"vel": 1.0, "delta_mass": 1e-3, "delta_damping": 1e-6, "f_ref_target": 0.01}
     weights.update(features.pop("weights", {}))
@@ -118,7 +118,7 @@ def build_problem(
 
 def closed_loop(problem: Any, steps: int, belief: Sequence[float] = (1.0,)) -> dict[str, Any]:
     """``steps`` MPC solves along the closed loop (module docstring); times each solve."""
-    from ccm.control.admittance import system_matrices
+    from ccm.control.mpc.admittance import system_matrices
 
     n = N_DIM
     mass, damping, f_ref = np.full(n, 5.0), np.full(n, 500.0), np.zeros(n)
@@ -159,7 +159,7 @@ def _row(
 ) -> dict[str, Any]:
     """Build the problem, run the closed loop ``repeats`` times (identical trajectories) and
     keep the repeat with the lowest median (background load only ever slows a repeat)."""
-    from ccm.control import mpc_codegen
+    from ccm.control.mpc import codegen as mpc_codegen
 
     belief = kw.pop("belief", (1.0,))
     t0 = time.perf_counter()

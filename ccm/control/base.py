@@ -8,9 +8,9 @@ from typing import Any, Self
 
 import numpy as np
 
-from ccm.errors import ConfigError, constructor_kwargs
-from ccm.protocols import Pattern
-from ccm.types import Command, Observation, TargetSample
+from ccm.core.errors import ConfigError, constructor_kwargs
+from ccm.core.protocols import Pattern
+from ccm.core.types import Command, Observation, TargetSample
 
 
 class Controller(ABC):

@@ -10,8 +10,8 @@ import numpy as np
 
 from ccm.control._impedance_kernels import impedance_kernel
 from ccm.control.base import Controller
-from ccm.errors import ConfigError, check_bool, check_choice, check_nonneg, check_positive
-from ccm.types import Command, Observation, TargetSample
+from ccm.core.errors import ConfigError, check_bool, check_choice, check_nonneg, check_positive
+from ccm.core.types import Command, Observation, TargetSample
 
 DAMPING_RULES = ("critical", "paper", "fixed")
 

@@ -5,16 +5,16 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from ccm.control.aic import AIC
-from ccm.control.anticipation import AnticipatoryAVIC
-from ccm.control.avic import AVIC
-from ccm.control.bac import BAC
+from ccm.control.adaptive.anticipation import AnticipatoryAVIC
+from ccm.control.adaptive.avic import AVIC
+from ccm.control.adaptive.modal import ModalAVIC
 from ccm.control.base import Controller
-from ccm.control.gp_mpc import GPMPC
+from ccm.control.baselines.aic import AIC
+from ccm.control.baselines.bac import BAC
+from ccm.control.baselines.mrac import MRAC
 from ccm.control.impedance import FixedImpedance
-from ccm.control.modal import ModalAVIC
-from ccm.control.mrac import MRAC
-from ccm.errors import check_choice
+from ccm.control.mpc.gp_mpc import GPMPC
+from ccm.core.errors import check_choice
 
 CONTROLLERS: dict[str, type[Controller]] = {
     "fixed_impedance": FixedImpedance,

@@ -5,13 +5,13 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from ccm.errors import check_choice
+from ccm.core.errors import check_choice
 from ccm.sim.base import Simulator
 
 #: backend name -> "module:Class", imported lazily (importing PyBullet costs ~80 ms, measured)
 BACKENDS: dict[str, str] = {
-    "pymunk2d": "ccm.sim.pymunk2d:Pymunk2D",
-    "pybullet3d": "ccm.sim.pybullet3d:PyBullet3D",
+    "pymunk2d": "ccm.sim.pymunk.backend:Pymunk2D",
+    "pybullet3d": "ccm.sim.pybullet.backend:PyBullet3D",
 }
 
 

@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import check_int_positive, check_positive
-from ccm.types import Command, Observation, StepInfo
+from ccm.core.errors import check_int_positive, check_positive
+from ccm.core.types import Command, Observation, StepInfo
 
 
 class Simulator(ABC):

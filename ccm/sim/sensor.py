@@ -18,7 +18,14 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import ConfigError, check_finite, check_keys, check_nonneg, check_vector, to_plain
+from ccm.core.errors import (
+    ConfigError,
+    check_finite,
+    check_keys,
+    check_nonneg,
+    check_vector,
+    to_plain,
+)
 
 
 def _per_axis(key: str, value: Any, dim: int, nonneg: bool) -> tuple[float, ...]:
@@ -86,7 +93,7 @@ class SensorConfig:
         dropout_steps: int = 0,
     ) -> SensorConfig:
         """Build from scalars (broadcast to every axis) or per-axis sequences, validating."""
-        from ccm.errors import check_int_nonneg, check_range
+        from ccm.core.errors import check_int_nonneg, check_range
 
         return cls(
             spike_prob=check_range(f"{prefix}.spike_prob", spike_prob, 0.0, 1.0),

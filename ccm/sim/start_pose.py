@@ -13,7 +13,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from ccm.errors import ConfigError
+from ccm.core.errors import ConfigError
 
 #: overlap [m] below which a start counts as touching, not inside (float round-off)
 TOLERANCE = 1e-6
@@ -25,7 +25,7 @@ def _fmt(values: Sequence[float]) -> str:
 
 def check_start_2d(scene: Any, start: Sequence[float], prefix: str = "task.scene") -> None:
     """Reject a 2D start whose end-effector block overlaps one of ``scene.boxes``
-    (:class:`ccm.sim.scene.SceneSpec`; ``start`` = ``(x, y, angle)``)."""
+    (:class:`ccm.sim.pymunk.scene.SceneSpec`; ``start`` = ``(x, y, angle)``)."""
     x, y, angle = start
     half = (scene.ee.size[0] / 2, scene.ee.size[1] / 2)
     c, s = math.cos(angle), math.sin(angle)
@@ -50,7 +50,7 @@ def check_start_2d(scene: Any, start: Sequence[float], prefix: str = "task.scene
 
 def check_start_3d(scene: Any, point: Sequence[float], prefix: str = "task.scene") -> None:
     """Reject a 3D start whose tool point lies inside one of ``scene.boxes`` or the table
-    (:class:`ccm.sim.pybullet_scene.Scene3D`)."""
+    (:class:`ccm.sim.pybullet.scene.Scene3D`)."""
     solids = [(f"{prefix}.boxes[{i}]", b.center, b.size) for i, b in enumerate(scene.boxes)]
     table = scene.table
     if table is not None:

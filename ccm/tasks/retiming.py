@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import ConfigError, check_choice, check_finite, check_nonneg, check_positive
+from ccm.core.errors import ConfigError, check_choice, check_finite, check_nonneg, check_positive
+from ccm.core.types import TargetSample
 from ccm.tasks.trajectory import MotionPattern
-from ccm.types import TargetSample
 
 __all__ = [
     "RetimedPattern",

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig
 
-from ccm.errors import ConfigError, check_choice, check_keys, check_vector, to_plain
+from ccm.core.errors import ConfigError, check_choice, check_keys, check_vector, to_plain
 from ccm.tasks.trajectory import MotionPattern, build_pattern
 
 __all__ = ["CONTACT_KINDS", "TASK_KEYS", "Task", "load_task"]
@@ -57,10 +57,10 @@ class Task:
             "impactless"}``. They stand in for a vision system's estimates (seed A §3.3,
             Table 1): nominal positions a controller may use (noise is added elsewhere, from a
             seeded generator), never ground truth, which stays in the scene. The mapping form
-            is what :meth:`ccm.learn.contacts.ContactMap.from_config` takes.
+            is what :meth:`ccm.learn.contact.contacts.ContactMap.from_config` takes.
         contact_annotations: one dict per entry of ``contacts`` (same order) with the optional
             keys ``segment`` and ``normal`` of that entry, for metrics (seed A §4.5.1, Fig. 16;
-            :mod:`ccm.contact_metrics`): ``{"segment": name or None, "segment_index": index of
+            :mod:`ccm.metrics.contacts`): ``{"segment": name or None, "segment_index": index of
             that segment in ``pattern`` or None, "normal": unit tuple of dim floats or None}``.
             ``normal`` is the outward surface normal, i.e. the direction of the contact force
             on the end-effector; ``segment`` names the pattern segment during which the

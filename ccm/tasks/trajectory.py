@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.errors import (
+from ccm.core.errors import (
     ConfigError,
     check_finite,
     check_int_positive,
@@ -36,8 +36,8 @@ from ccm.errors import (
     check_positive,
     check_vector,
 )
+from ccm.core.types import TargetSample
 from ccm.tasks._trajectory_kernels import arc_eval
-from ccm.types import TargetSample
 
 __all__ = [
     "ArcSegment",

@@ -1,0 +1,504 @@
+"""Seed A's full framework: AVIC with mode detection plus contact change handling (§3.3–3.5).
+
+On top of :class:`ccm.control.adaptive.modal.ModalAVIC` (Eq. 4a–4c, Algorithm 1):
+
+* **Contact anticipation** (§3.3): a :class:`ccm.learn.contact.contacts.ContactMap` holds one
+Gaussian
+  belief per expected contact, started from the task's nominal contacts plus seeded noise
+  (the stand-in for vision) and revised by a Kalman update with the end-effector position at
+  each detected contact. The region C of a contact is its belief ellipsoid at
+  ``sigma_scale``.
+* **Re-timing** (§3.5.2, Eq. 11): at the start of each trial the planned pattern is re-timed
+  so that wherever the path approaches a collision inside its region C the target moves no
+  faster than that contact's learned approach velocity v_a (Eq. 9,
+  :class:`ccm.learn.contact.approach.ApproachVelocityModel`), a speed limit along the path
+  (:mod:`ccm.control.adaptive.contact_regions`: C from the belief and the detection noise, capped
+  per plan segment, every approaching pass). The slow-down is complete where the pass
+  begins (p_c); it lasts until the contact is made (or the path leaves C), and then the
+  plan's speed returns, all with C∞ rate changes. Holds, slow segments and the path outside
+  C keep the plan's timing.
+* **Transition-phase controllers** (§3.4, Eq. 8) blended in by Eq. 10: before an expected
+  collision K* = ``k_collision``, with the base's force loop kept across the motion (the
+  10 N press while sliding into a wall) but not along it (there the re-timed target, not a
+  force loop, must set the approach speed); around an expected impact-less transition
+  K* = K_max with the base's force loop; Eq. 8's u_ff (the base's λ Ŵ) only for the kinds
+  in ``transition_feedforward`` (:mod:`ccm.control.adaptive.transition`). The collision weight takes
+  precedence; the weights rise linearly to 1 by p_c and fall back over ``blend_s`` once the
+  contact is made.
+* **Events** (§3.3, :mod:`ccm.control.adaptive.contact_events`): collisions from
+  :class:`ccm.learn.contact.collisions.CollisionDetector` (force jump and loss of velocity) when the
+  tool was moving along the commanded motion; quasi-static contacts (the tool stalls and the
+  force against the motion rises, with no detectable impact: position only); impact-less
+  transitions from Algorithm 1's mode changes. Collisions are associated in plan order, the
+  rest with the contact whose window is open (or a new one); a collision's commanded approach
+  speed and measured impact force update that contact's approach model (Eq. 9).
+
+The controller sees only the Observation, the planned pattern and the task's nominal
+contact list; never the scene. Results and how they compare with seed A: ``experiments/h4.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ccm.control.adaptive.avic import _OWN_KEYS as _AVIC_KEYS
+from ccm.control.adaptive.contact_events import ContactEvents, TransitionWindow
+from ccm.control.adaptive.contact_regions import (
+    approach_passes,
+    in_plan_order,
+    speed_pieces,
+    to_segment_end,
+)
+from ccm.control.adaptive.modal import ModalAVIC
+from ccm.control.adaptive.transition import KINDS, check_kinds, transition_force
+from ccm.control.impedance import FixedImpedance
+from ccm.core.errors import (
+    ConfigError,
+    check_keys,
+    check_nonneg,
+    check_positive,
+    constructor_kwargs,
+)
+from ccm.core.types import Command, Observation, TargetSample
+from ccm.learn.contact.collisions import CollisionDetector
+from ccm.learn.contact.contacts import ContactMap
+from ccm.tasks.retiming import RetimedPattern, TimeWarp
+
+_KEYS = (
+    "sigma_scale", "min_region_radius_m", "blend_s", "k_collision", "path_dt",
+    "init_noise_std", "init_std", "use_kinds", "stall_fraction", "stall_lookback_s",
+    "stall_travel_m", "detection_noise_std", "transition_feedforward",
+    "association_gate", "approach_cos_min", "force_along_cos", "map", "collisions",
+)  # fmt: skip
+
+
+class AnticipatoryAVIC(ContactEvents, ModalAVIC):
+    """AVIC + Algorithm 1 + contact anticipation and transition handling (seed A §3.3–3.5).
+
+    Args:
+        anticipation: ``sigma_scale`` (region C, Mahalanobis radius under the innovation
+            covariance P + R: :mod:`ccm.control.adaptive.contact_regions`), ``min_region_radius_m``
+            (floor on C's semi-axes [m]; 0 = none),
+            ``blend_s`` (T of Eq. 10 and of the Eq. 11 rate changes [s]), ``k_collision``
+            (K* of Eq. 8 before a collision [N/m]), ``path_dt`` (sampling of the plan for p_c [s]),
+            ``init_noise_std`` / ``init_std`` (vision-noise and initial belief std [m]),
+            ``detection_noise_std`` (noise of a detected contact's measured position, per
+            axis [m]: :meth:`_measured`),
+            ``use_kinds`` (which kinds of the task's contacts the robot is told about),
+            ``stall_fraction`` / ``stall_lookback_s`` / ``stall_travel_m`` (the quasi-static
+            contact rule of
+            :meth:`_pressed`), ``association_gate`` (:meth:`_in_sequence`, in σ),
+            ``approach_cos_min`` (:meth:`_approaching`), ``force_along_cos``
+            (:meth:`_force_along_motion`), ``transition_feedforward`` (the kinds of
+            transition controller that keep Eq. 8's u_ff: :mod:`ccm.control.adaptive.transition`),
+            ``map`` (:class:`ContactMap` arguments) and ``collisions``
+            (:class:`CollisionDetector` arguments).
+        **modal: the :class:`ModalAVIC` arguments.
+    """
+
+    def __init__(self, anticipation: Mapping[str, Any] | None = None, **modal: Any) -> None:
+        super().__init__(**modal)
+        key = f"{modal.get('key', 'controller')}.anticipation"
+        a = dict(anticipation or {})
+        check_keys(key, a, _KEYS)
+        self.ant_key = key
+        self.sigma_scale = check_positive(f"{key}.sigma_scale", a.get("sigma_scale", 3.0))
+        self.min_region_m = check_nonneg(
+            f"{key}.min_region_radius_m", a.get("min_region_radius_m", 0.0)
+        )
+        self.blend_s = check_positive(f"{key}.blend_s", a.get("blend_s", 0.2))
+        self.k_collision = check_positive(f"{key}.k_collision", a.get("k_collision", self.k_free))
+        self.path_dt = check_positive(f"{key}.path_dt", a.get("path_dt", 0.005))
+        self.order_gate = check_positive(f"{key}.association_gate", a.get("association_gate", 5.0))
+        self.approach_cos_min = check_nonneg(
+            f"{key}.approach_cos_min", a.get("approach_cos_min", 0.5)
+        )
+        self.force_along_cos = check_nonneg(f"{key}.force_along_cos", a.get("force_along_cos", 0.5))
+        self.stall_fraction = check_positive(f"{key}.stall_fraction", a.get("stall_fraction", 0.2))
+        self.stall_travel_m = check_positive(
+            f"{key}.stall_travel_m", a.get("stall_travel_m", 0.003)
+        )
+        self.stall_lookback_s = check_nonneg(
+            f"{key}.stall_lookback_s", a.get("stall_lookback_s", 0.05)
+        )
+        self.init_noise_std = a.get("init_noise_std", 0.06)
+        self.detection_noise_std = check_nonneg(
+            f"{key}.detection_noise_std", a.get("detection_noise_std", 0.0)
+        )
+        self._meas_rng: np.random.Generator | None = None
+        self.transition_ff = check_kinds(
+            f"{key}.transition_feedforward",
+            a.get("transition_feedforward", []),
+        )
+        self.init_std = a.get("init_std")
+        self.use_kinds = check_kinds(
+            f"{key}.use_kinds", a.get("use_kinds", ["collision", "impactless"])
+        )
+        self._map_args = dict(a.get("map") or {})
+        self.detector = CollisionDetector(
+            **dict(a.get("collisions") or {}), key=f"{key}.collisions"
+        )
+        self.contact_map: ContactMap | None = None  # built at the first prepare(), then kept
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> AnticipatoryAVIC:
+        """Split a ``controller`` config into its blocks, AVIC's keys and the impedance keys."""
+        own = {k: v for k, v in cfg.items() if k in _AVIC_KEYS}
+        rest = {k: v for k, v in cfg.items() if k not in (*_AVIC_KEYS, "modes", "anticipation")}
+        imp = constructor_kwargs(FixedImpedance, rest, key)
+        return cls(
+            anticipation=cfg.get("anticipation"), modes=cfg.get("modes"), **own,
+            impedance=imp, key=key,
+        )  # fmt: skip
+
+    def reset(self, dim: int, control_dt: float) -> None:
+        super().reset(dim, control_dt)
+        self.detector.reset()
+        self._windows: list[TransitionWindow] = []
+        self._impacts0: list[int] = []
+        self._prior: list[tuple[list[float], float]] = []
+        self._retimed: RetimedPattern | None = None
+        self._slow: list[tuple[int, float, float, float]] = []  # contact, φ_c, φ_exit, v_a
+        self._changes: list[tuple[float, float, float]] = []
+        self._hits: dict[int, float] = {}  # contact -> wall time of the detected contact
+        self._trigger_pos: np.ndarray | None = None
+        self._last_mode = -1.0
+        # (t, planned velocity) of the last ~0.2 s: a collision's v of Eq. 9 is the speed the
+        # robot was *commanded* to approach with at the onset (the quantity Eq. 9 revises)
+        keep = self.stall_lookback_s + 2.0 * self.detector.peak_window_s + 0.2  # s of history
+        self._vel_hist: deque[tuple[float, np.ndarray]] = deque(
+            maxlen=max(2, round(keep / control_dt))
+        )
+        self._force_hist: deque[tuple[float, np.ndarray]] = deque(maxlen=self._vel_hist.maxlen)
+        self._resist_hist: deque[tuple[float, float]] = deque(maxlen=self._vel_hist.maxlen)
+        self._new_direction(None)  # the stall and sliding-resistance state (ContactEvents)
+        self._signals.update(self._ant_signals(0.0, 0.0))
+
+    def _force_along_motion(self, d: np.ndarray, target: TargetSample) -> bool:
+        """Whether the force-controlled direction d points along the planned motion (|cos| >
+        ``force_along_cos``): then a force loop would drive the approach itself. Across the
+        motion (a press on the table while sliding into a wall) the hybrid law keeps its force
+        loop."""
+        speed = math.sqrt(float(target.velocity @ target.velocity))
+        return speed > 1e-9 and abs(float(d @ target.velocity)) > self.force_along_cos * speed
+
+    def _ant_signals(self, alpha: float, event: float) -> dict[str, float]:
+        return {
+            "transition_alpha": alpha,
+            "collision_event": event,
+            "n_contacts_believed": float(len(self.contact_map.contacts) if self.contact_map else 0),
+            "pattern_rate": 1.0,
+        }
+
+    # ------------------------------------------------------------------ planning (§3.5)
+
+    def prepare(
+        self, pattern: Any, contacts: Sequence[Mapping[str, Any]], rng: np.random.Generator
+    ) -> Any:
+        """Build the beliefs once (trial 1), then re-time P around every expected collision."""
+        if self.contact_map is None:
+            told = [c for c in contacts if c.get("kind", "collision") in self.use_kinds]
+            self.contact_map = ContactMap.from_config(
+                told, rng, init_noise_std=self.init_noise_std, init_std=self.init_std,
+                dim=pattern.dim, key=f"{self.ant_key}.map", **self._map_args,
+            )  # fmt: skip
+        self._pattern = pattern
+        self._meas_rng = rng  # this trial's detection noise (:meth:`_measured`)
+        self._prior = [  # beliefs before this trial (report(): Table 1's "initial" column)
+            (c.belief.mean.tolist(), float(np.sqrt(np.max(np.diag(c.belief.cov)))))
+            for c in self.contact_map.contacts
+        ]
+        self._impacts0 = [  # Eq. 9 measurements before this trial, per contact (report())
+            len(c.approach.velocities) if c.approach is not None else 0
+            for c in self.contact_map.contacts
+        ]
+        ts = np.arange(0.0, pattern.duration + 0.5 * self.path_dt, self.path_dt)
+        path = pattern.sample_many(ts)
+        pos, speed = path["position"], np.linalg.norm(path["velocity"], axis=1)
+        self._slow, self._impactless = [], []
+        contacts = self.contact_map.contacts
+        passes = [
+            approach_passes(c.belief, pos, self.sigma_scale, self.min_region_m) for c in contacts
+        ]
+        ordered = [
+            i for i, c in enumerate(contacts) if c.kind == "collision" and c.source == "config"
+        ]
+        for i, ps in zip(ordered, in_plan_order([passes[i] for i in ordered]), strict=True):
+            passes[i] = ps
+        for i, c in enumerate(contacts):
+            for p in passes[i]:
+                if c.kind != "collision":
+                    self._impactless.append((i, float(ts[p.start]), float(ts[p.exit])))
+                    continue
+                v_a = c.approach.next_velocity() if c.approach is not None else math.inf
+                p = to_segment_end(p, path["segment"])
+                pieces = speed_pieces(ts, speed, path["segment"], [p], v_a)
+                self._slow.append((i, float(ts[p.start]), float(ts[p.exit]), pieces))
+        self._slow.sort(key=lambda e: e[1])
+        self._impactless.sort(key=lambda e: e[1])
+        self._changes, self._rate0 = [], 1.0
+        self._replan(0.0)
+        return self._retimed
+
+    def _replan(self, t_from: float) -> None:
+        """(Re)build the warp from wall time ``t_from`` on, keeping earlier rate changes.
+
+        Every approaching pass through the region C of a collision not yet made brings its
+        speed-limit pieces (:func:`ccm.control.adaptive.contact_regions.speed_pieces`: per plan
+        segment, ρ = v_a / the segment's top speed in C; holds and slow segments keep ρ = 1),
+        so the target never moves faster than v_a inside C. Where pieces overlap, the
+        smallest rate applies. A slow-down is complete where its piece begins (Eq. 10: the
+        switch is complete on reaching C); a speed-up starts where the piece ends; each change
+        lasts ``blend_s`` (shorter if the plan leaves no room) with Eq. 11's C∞ profile.
+        """
+        changes = [c for c in self._changes if c[0] < t_from]
+        warp = TimeWarp(changes, rate0=self._rate0)
+        windows = [w for w in self._windows if w.t0 < t_from]
+        phi_from = float(warp.phi(t_from)) if t_from > 0 else 0.0
+        cur = changes[-1][2] if changes else self._rate0
+        t_free = max(t_from, changes[-1][1] if changes else 0.0)
+        spans = []  # (φ_start, φ_end, ρ, contact) of the speed-limit pieces still ahead
+        for i, _, phi_x, pieces in self._slow:
+            if i in self._hits or phi_x <= phi_from:
+                continue
+            spans += [(max(e, phi_from), x, r, i) for e, x, r in pieces if x > phi_from]
+
+        def wanted(phi: float) -> float:
+            return min([r for e, x, r, _ in spans if e <= phi < x] + [1.0])
+
+        for bp in sorted({phi_from} | {e for e, *_ in spans} | {x for _, x, *_ in spans}):
+            r = wanted(bp)
+            if abs(r - cur) < 1e-12:
+                continue
+            if bp <= phi_from and t_from == 0.0 and not changes:  # starts inside C
+                self._rate0 = cur = r
+                warp = TimeWarp([], rate0=r)
+                continue
+            if r < cur:  # slow down, complete at bp
+                phi_s = max(bp - 0.5 * (cur + r) * self.blend_s, float(warp.phi(t_free)))
+                t_s = warp.inverse(phi_s)
+                dur = max(2.0 * (bp - phi_s) / (cur + r), 0.02)
+            else:  # speed up from bp
+                t_s = max(warp.inverse(bp), t_free)
+                dur = self.blend_s
+            changes.append((t_s, t_s + dur, r))
+            warp = TimeWarp(changes, rate0=self._rate0)
+            cur, t_free = r, t_s + dur
+        for i, phi_c, phi_x, _ in self._slow:  # one transition window per approaching pass
+            if i in self._hits or phi_x <= phi_from:
+                continue
+            if phi_c <= phi_from:  # inside C now: the transition controller at once
+                t0 = t1 = t_from
+            else:
+                t1 = warp.inverse(phi_c)
+                t0 = max(t1 - self.blend_s, t_from)
+            windows.append(TransitionWindow(i, "collision", t0, t1 + 1e-9, warp.inverse(phi_x)))
+        for i, phi_c, phi_x in self._impactless:
+            if phi_c > phi_from:
+                t_c = warp.inverse(phi_c)
+                t0 = max(t_c - self.blend_s, t_from)
+                windows.append(TransitionWindow(i, "impactless", t0, t_c, warp.inverse(phi_x)))
+        self._changes, self._windows = changes, windows
+        if self._retimed is None:
+            self._retimed = RetimedPattern(self._pattern, warp)
+        else:  # the runner holds this object: swap its clock in place (φ is unchanged so far)
+            self._retimed.warp = warp
+            self._retimed.duration = warp.inverse(self._retimed.pattern.duration)
+
+    # ------------------------------------------------------------------ control (Eq. 8, 10)
+
+    def step(self, obs: Observation, target: TargetSample) -> Command:
+        """Base command (Eq. 4a) blended with the transition-phase command (Eq. 8, Eq. 10)."""
+        event = self.detector.update_obs(obs)
+        self._vel_hist.append((obs.t, target.velocity))
+        self._force_hist.append((obs.t, obs.force.copy()))
+        if self._signals.get("mode_trigger") == 1.0:
+            self._trigger_pos = obs.position.copy()
+        cmd = super().step(obs, target)
+        self._impactless_event(obs)
+        hit = 0.0
+        if event is not None and not self._approaching(event):
+            event = None
+        if event is not None and self.contact_map is not None:
+            z = self._measured(event.position)
+            v_cmd = float(np.linalg.norm(self._commanded_velocity(event.onset_time)))
+            measured = {"v_used": v_cmd, "f_measured": event.impact_force_N}
+            if v_cmd < self.detector.min_approach_speed:
+                measured = {}  # the plan was not approaching: no Eq. 9 measurement
+            ev = self.contact_map.observe(
+                z, "collision", **measured,
+                expected=self._in_sequence(z), expected_gate=self.order_gate,
+            )  # fmt: skip
+            hit = 1.0
+            self._release(ev.index, obs.t)
+        elif self.contact_map is not None and self._pressed(obs, target):
+            # contact made without a detectable impact (Eq. 9 gets the stall's peak force:
+            # below F_d, so the next approach is faster); weaker evidence than a collision,
+            # so it must lie within the map's gate of the next contact
+            gate = self.contact_map.gate
+            z = self._measured(obs.position)
+            expected = self._in_sequence(z, gate)
+            if expected is None:
+                self._stall_used = True  # e.g. stick-slip short of the contact: not again
+            else:
+                ev = self.contact_map.observe(
+                    z, "collision", v_used=self._stall_speed,
+                    f_measured=self._stall_peak, expected=expected, expected_gate=gate,
+                )  # fmt: skip
+                hit = 2.0
+                self._release(ev.index, obs.t)
+        # Eq. 10 with two transition controllers (Eq. 8): the collision one (K* = k_collision;
+        # the base's force loop kept unless the force direction lies along the motion, where
+        # the re-timed target, not the force loop, must set the approach speed) takes
+        # precedence over the impact-less one (K* = K_max, force loop kept); weights
+        # a_c + a_i <= 1, continuous in both.
+        a_c = max((w.alpha(obs.t, self.blend_s) for w in self._windows if w.kind == "collision"),
+                  default=0.0)  # fmt: skip
+        a_i = max((w.alpha(obs.t, self.blend_s) for w in self._windows if w.kind != "collision"),
+                  default=0.0)  # fmt: skip
+        a_i = min(a_i, 1.0 - a_c)
+        alpha = a_c + a_i
+        if alpha > 0.0:
+            k1 = self._signals["stiffness_Npm"]
+            force = (1.0 - alpha) * cmd.force
+            ff = self.last_feedforward  # Eq. 8's u_ff, for the kinds configured to keep it
+            ff_c, ff_i = (ff if k in self.transition_ff else None for k in KINDS)
+            d, loop = target.force_dir, self.last_force_loop
+            if a_c > 0.0:  # Eq. 1's force loop kept across the motion only
+                keep = d is not None and not self._force_along_motion(d, target)
+                gains = (self.k_collision, self.damping_for(self.k_collision))
+                force += a_c * transition_force(
+                    obs, target, gains, self.mass_kg, self.inertia_feedforward,
+                    loop if keep else None, ff_c,
+                )  # fmt: skip
+            if a_i > 0.0:
+                gains = (self.k_max, self.damping_for(self.k_max))
+                force += a_i * transition_force(
+                    obs, target, gains, self.mass_kg, self.inertia_feedforward, loop, ff_i
+                )
+            cmd = Command(force=force, torque=cmd.torque)
+            self._signals["stiffness_Npm"] = (
+                (1.0 - alpha) * k1 + a_c * self.k_collision + a_i * self.k_max
+            )
+        self._signals.update(self._ant_signals(alpha, hit))
+        if self._retimed is not None:
+            self._signals["pattern_rate"] = float(self._retimed.warp.rate(obs.t))
+        return cmd
+
+    def _impactless_event(self, obs: Observation) -> None:
+        """An Algorithm 1 decision that changes the mode is an impact-less contact event."""
+        s = self._signals
+        if s["mode_event"] > 0 and self._trigger_pos is not None and self.contact_map is not None:
+            if self._last_mode >= 0 and s["mode"] != self._last_mode:
+                ev = self.contact_map.observe(
+                    self._measured(self._trigger_pos), "impactless",
+                    expected=self._expected(obs.t, "impactless"),
+                )  # fmt: skip
+                for w in self._windows:
+                    if w.contact == ev.index and not w.done:
+                        w.release, w.done = min(w.release, obs.t), True
+        self._last_mode = s["mode"]
+
+    def _measured(self, position: np.ndarray) -> np.ndarray:
+        """The contact position the robot measures when it detects a contact (§3.3: the
+        end-effector position by forward kinematics, whose noise "depends on the joint encoder
+        noise and forward kinematics"): the tool position plus seeded Gaussian noise of
+        ``detection_noise_std`` per axis, drawn from this trial's generator. The simulator's
+        pose is exact, so without this draw the beliefs would converge to the sub-millimetre
+        errors of exact kinematics (issue #17 item 4)."""
+        z = np.array(position, dtype=float)
+        if self.detection_noise_std > 0.0 and self._meas_rng is not None:
+            z = z + self._meas_rng.normal(0.0, self.detection_noise_std, size=z.shape)
+        return z
+
+    def _release(self, contact: int, t: float) -> None:
+        """Contact made: leave the transition controller and return to the plan's speed."""
+        for w in self._windows:
+            if w.contact == contact and not w.done:
+                w.release, w.done = min(w.release, t), True
+        self._stall_used = True  # this contact's stall is no evidence for the others
+        if contact in self._hits:
+            return
+        self._hits[contact] = t
+        if any(i == contact for i, *_ in self._slow) and self._retimed is not None:
+            self._replan(t)  # keep the clock so far; later spans only (this one is made)
+
+    def report(self) -> dict[str, Any]:
+        """``contacts``: per contact belief, its name, kind and source, ``mean`` [m], ``std``
+        (the largest standard deviation along an axis, the ± of seed A Table 1 [m]),
+        ``region_m`` (the largest semi-axis of region C, R and floor included [m]),
+        ``prior_mean`` / ``prior_std`` (the same before the trial; None for a contact first
+        seen in it) and, for a collision made this trial, ``approach_velocity`` (the commanded
+        speed Eq. 9 recorded, m/s) and ``impact_force`` (the F_m it measured, N); plus
+        :meth:`AVIC.report`."""
+        out = []
+        contacts = self.contact_map.contacts if self.contact_map is not None else []
+        for i, c in enumerate(contacts):
+            before = self._impacts0[i] if i < len(self._impacts0) else 0
+            prior = self._prior[i] if i < len(self._prior) else (None, None)
+            made = c.approach is not None and len(c.approach.velocities) > before
+            out.append({
+                "name": c.name, "kind": c.kind, "source": c.source,
+                "mean": c.belief.mean.tolist(),
+                "std": float(np.sqrt(np.max(np.diag(c.belief.cov)))),
+                "region_m": max(
+                    self.sigma_scale
+                    * float(np.sqrt(np.max(np.linalg.eigvalsh(c.belief.cov + c.belief.R)))),
+                    self.min_region_m,
+                ),
+                "prior_mean": prior[0], "prior_std": prior[1],
+                "approach_velocity": c.approach.velocities[-1] if made else None,
+                "impact_force": c.approach.forces[-1] if made else None,
+            })  # fmt: skip
+        return {**super().report(), "contacts": out}
+
+    def end_trial(self) -> None:
+        """Kalman predict step for every belief (§3.3); models of every mode (ModalAVIC)."""
+        super().end_trial()
+        if self.contact_map is not None:
+            self.contact_map.end_trial()
+
+    def learned_state(self) -> dict[str, Any]:
+        """:meth:`ModalAVIC.learned_state` plus ``contact_map``: the contact beliefs and their
+        approach-velocity models (:meth:`ContactMap.to_dict`; None before the first trial)."""
+        state = super().learned_state()
+        state["contact_map"] = None if self.contact_map is None else self.contact_map.to_dict()
+        return state
+
+    def load_learned_state(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`learned_state` output. A saved contact map replaces the one
+        :meth:`prepare` would build from the task's nominal contacts (it builds one only while
+        there is none); its settings (``anticipation.map``) stay this config's.
+
+        Raises:
+            ConfigError: ``init_from``, on a malformed or mismatched state.
+        """
+        from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
+
+        check_state_keys(state, ("calibration", "classifier", "modes", "contact_map"))
+        data, cmap = state["contact_map"], None
+        if data is not None:
+            try:
+                key = f"{self.ant_key}.map"
+                ours = ContactMap(data["settings"]["dim"], **self._map_args, key=key)
+                approach = ours.approach_params
+                contacts = [
+                    {**c, "approach": c["approach"] and {**c["approach"], "params": approach}}
+                    for c in data["contacts"]
+                ]
+                merged = {**data, "settings": ours.to_dict()["settings"], "contacts": contacts}
+                cmap = ContactMap.from_dict(merged, key="init_from")
+                dim = getattr(self, "dim", cmap.dim)
+                if cmap.dim != dim:
+                    raise ConfigError(
+                        "init_from", f"the contact map is {cmap.dim}-D, the task {dim}-D"
+                    )
+            except STATE_ERRORS as exc:
+                raise state_error(exc) from None
+        super().load_learned_state({k: v for k, v in state.items() if k != "contact_map"})
+        self.contact_map = cmap

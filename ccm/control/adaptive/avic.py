@@ -1,0 +1,396 @@
+"""Adaptive variable impedance control with a learned forward model (seed A §3.1, Eq. 4a–4c).
+
+The command adds to the hybrid impedance law of Eq. 1 a feed-forward wrench λ W_pred from
+the forward model (Eq. 4a), and moves the stiffness between K_free and K_max with the
+model's accuracy (Eq. 4b), where λ is a logistic function of the prediction error (Eq. 4c):
+
+    u_t   = K_p Δx + K_d Δẋ + m ẍ_d + u_fc − λ Ŵ                       (4a)
+    K_p   = K_free + (1 − λ)(K_max − K_free)                             (4b)
+    λ     = 1 − 1 / (1 + exp(−r (ε − ε₀)))                               (4c)
+
+Timing. The forward model's step is its horizon H = ``forward_model.horizon_s`` (H control
+periods; seed A's 2D world stepped its model with the simulation). At control step t the
+sensor has just given F_t, so the newest error is ε_t = ‖D_t − D̂_t‖ (D̂_t was predicted from
+S_{t−H}), the model learns X_t = [S_{t−H}, D_t] and predicts D̂_{t+H} = f(S_t), and the
+command u_t — applied until t+1 — uses λ_t and D̂_{t+1} (predicted from S_{t+1−H}). With
+H = 1 this is the paper's λ_{t−1}, W_t^pred shifted to the sample at which each quantity
+becomes available.
+
+ε₀ and r from data (``calibrate``). Seed A tunes r and ε₀ "for the task". With
+``calibrate: {trials, quantile, shape}`` they are set from the prediction errors instead:
+the first ``trials`` trials in which the model predicts run at K_max without feed-forward
+(the model is new, as after a new mode in Algorithm 1) while it learns and every ε_t is kept
+(a frozen model that only fits at the end of a trial gives its errors on its training window
+instead); then
+ε₀ = the ``quantile`` of those errors and r = ``shape`` / ε₀, so λ(ε₀/2) = 1/(1 + e^{−shape/2})
+and λ(3ε₀/2) = 1 − that (shape 10: 0.993 and 0.007). experiments/tuning/avic.md records why.
+
+Sign. Ŵ is the predicted *external* force on the end-effector, so the command subtracts it
+to cancel it (the paper writes +λ W_pred for the compensating wrench).
+
+Direction. The model predicts magnitudes (Eq. 2–3); ``ff_direction`` turns ‖F̂‖ into a
+vector: ``against_motion`` (seed A §3.1: forces act along or against the direction of
+motion, as friction and drag do) gives Ŵ = −‖F̂‖ v̂, and no feed-forward below
+``min_speed``; ``measured`` keeps the direction of the latest measured force, Ŵ = ‖F̂‖ F̂_t,
+which also suits forces that are not aligned with the motion (springs); ``along_motion``
+keeps only the part of that vector along the measured direction of motion v̂,
+Ŵ = ‖F̂‖ (F̂_t·v̂) v̂, and none below ``min_speed``.
+
+Rigid contacts. Against a surface the tool is pushed into and cannot move through (a target
+inside a wall or table), ``measured`` cancels the surface's reaction to the controller's own
+push: the command grows by λ‖F̂‖ with no motion to show for it, a positive feedback
+F = K δ / (1 − λ) (on ``h4_contact_learning`` |F| climbed from 6 to 197 N in 0.16 s,
+measured). ``along_motion`` has no component along the normal of a surface the tool rests
+on or slides along (its velocity there is zero), so it cancels friction, drag and the force
+of a spring being stretched, but not a constraint's reaction (seed A §3.1: forces act along
+or against the motion).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
+from ccm.control.impedance import FixedImpedance
+from ccm.core.errors import (
+    ConfigError,
+    check_bool,
+    check_choice,
+    check_int_positive,
+    check_keys,
+    check_nonneg,
+    check_positive,
+    constructor_kwargs,
+)
+from ccm.core.filters import first_order_alpha, lowpass_sequence
+from ccm.core.types import Command, Observation, TargetSample
+from ccm.learn.mixtures.forecast import ForecastBuffer, horizon_steps
+from ccm.learn.mixtures.forward_model import N_STATE, magnitudes, make_forward_model
+
+FF_DIRECTIONS = ("against_motion", "measured", "along_motion")
+_OWN_KEYS = (
+    "k_free", "k_max", "r", "eps0", "calibrate", "error_lowpass_s", "adaptive", "feedforward",
+    "ff_direction", "min_speed", "forward_model",
+)  # fmt: skip
+_CALIBRATE_KEYS = ("trials", "quantile", "shape")
+
+
+def check_calibrate(cfg: Mapping[str, Any] | None, key: str) -> dict[str, float] | None:
+    """Validate ``calibrate: {trials >= 1, quantile in (0, 1), shape > 0}`` (or None)."""
+    if cfg is None:
+        return None
+    if not isinstance(cfg, Mapping):
+        raise ConfigError(
+            key, f"must be a mapping {{trials, quantile, shape}} or null, got {cfg!r}"
+        )
+    check_keys(key, cfg, _CALIBRATE_KEYS)
+    q = check_positive(f"{key}.quantile", cfg.get("quantile", 0.9))
+    if q >= 1.0:
+        raise ConfigError(f"{key}.quantile", f"must be in (0, 1), got {q!r}")
+    return {
+        "trials": check_int_positive(f"{key}.trials", cfg.get("trials", 1)),
+        "quantile": q,
+        "shape": check_positive(f"{key}.shape", cfg.get("shape", 10.0)),
+    }
+
+
+class AVIC(FixedImpedance):
+    """AVIC of seed A Eq. 4a–4c on top of the hybrid impedance law of Eq. 1.
+
+    Args:
+        k_free: K_free [N/m], the stiffness used when the model is accurate (> 0).
+        k_max: K_max [N/m], the stiffness used when it is not (>= k_free).
+        r: logistic growth rate of Eq. 4c [1/N]; None with ``calibrate``.
+        eps0: logistic midpoint ε₀ of Eq. 4c [N]; None with ``calibrate``.
+        calibrate: ``{trials, quantile, shape}``: set ε₀ and r from the prediction errors of
+            the first trials (module docstring), or None to use ``r`` and ``eps0``.
+        error_lowpass_s: time constant [s] of a first-order low-pass on ε_t before Eq. 4c
+            (and the calibration); 0 = the raw error (module docstring).
+        adaptive: False fixes K_p = K_max and drops the feed-forward while the model still
+            learns and predicts (the fixed-GMM + high-stiffness baseline of seed A §4.1).
+        feedforward: add −λ Ŵ (Eq. 4a).
+        ff_direction: ``against_motion``, ``measured`` or ``along_motion`` (see the module
+            docstring).
+        min_speed: measured speed below which ``against_motion`` and ``along_motion`` have no
+            direction [m/s].
+        forward_model: ``{kind: igmm | fixed_gmm, ...}`` (:mod:`ccm.learn.mixtures.forward_model`).
+        impedance: the remaining :class:`FixedImpedance` parameters (damping rule, force
+            loop, …); its ``stiffness`` is not used.
+    """
+
+    def __init__(
+        self,
+        k_free: float = 300.0,
+        k_max: float = 3000.0,
+        r: float | None = 2.0,
+        eps0: float | None = 2.0,
+        calibrate: Mapping[str, Any] | None = None,
+        error_lowpass_s: float = 0.0,
+        adaptive: bool = True,
+        feedforward: bool = True,
+        ff_direction: str = "measured",
+        min_speed: float = 0.005,
+        forward_model: Mapping[str, Any] | None = None,
+        impedance: Mapping[str, Any] | None = None,
+        key: str = "controller",
+    ) -> None:
+        imp = dict(impedance or {})
+        imp.pop("stiffness", None)
+        super().__init__(stiffness=k_max, **imp, key=key)
+        self.k_free = check_positive(f"{key}.k_free", k_free)
+        self.k_max = check_positive(f"{key}.k_max", k_max)
+        if self.k_max < self.k_free:
+            raise ConfigError(f"{key}.k_max", f"must be >= k_free={k_free}, got {k_max}")
+        self.key = key
+        self.calibrate = check_calibrate(calibrate, f"{key}.calibrate")
+        if self.calibrate is not None:
+            for name, value in (("r", r), ("eps0", eps0)):
+                if value is not None:
+                    raise ConfigError(
+                        f"{key}.{name}", f"is set by {key}.calibrate: give null, got {value!r}"
+                    )
+            self.r, self.eps0 = math.nan, math.nan  # until calibrated
+        else:
+            self.r = check_positive(f"{key}.r", r)
+            self.eps0 = check_nonneg(f"{key}.eps0", eps0)
+        self._calib_errors: list[float] = []
+        self._calib_trials = 0
+        self.error_lowpass_s = check_nonneg(f"{key}.error_lowpass_s", error_lowpass_s)
+        self.adaptive = check_bool(f"{key}.adaptive", adaptive)
+        self.feedforward = check_bool(f"{key}.feedforward", feedforward)
+        self.ff_direction = check_choice(f"{key}.ff_direction", ff_direction, FF_DIRECTIONS)
+        self.min_speed = check_nonneg(f"{key}.min_speed", min_speed)
+        self.model = make_forward_model(dict(forward_model or {}), f"{key}.forward_model")
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> AVIC:
+        """Split a ``controller`` config into AVIC's own keys and the impedance keys."""
+        own = {k: v for k, v in cfg.items() if k in _OWN_KEYS}
+        rest = {k: v for k, v in cfg.items() if k not in _OWN_KEYS}
+        imp = constructor_kwargs(FixedImpedance, rest, key)
+        return cls(**own, impedance=imp, key=key)
+
+    def reset(self, dim: int, control_dt: float) -> None:
+        super().reset(dim, control_dt)
+        self._lam = 0.0  # start stiff (K_max) until the model has proven itself
+        h = horizon_steps(self.model.horizon_s, control_dt, f"{self.key}.forward_model.horizon_s")
+        self.forecast = ForecastBuffer(h)
+        tau = self.error_lowpass_s
+        self._err_alpha = (
+            1.0 if tau == 0.0 else first_order_alpha(control_dt, 1 / (2 * math.pi * tau))
+        )
+        self._err_lp = math.nan  # ε̄_t: the low-passed error of this trial
+        # Learning X_t just before predicting (one kernel call) changes nothing in between
+        # when the hooks are AVIC's own: only learn() touches the model, and hold_k_max,
+        # the gains and the force loop do not read it.
+        cls = type(self)
+        self._fused = (
+            cls.learn is AVIC.learn
+            and cls.hold_k_max is AVIC.hold_k_max
+            and hasattr(self.model, "update_predict")
+        )
+        self.last_feedforward = np.zeros(dim)  # λ Ŵ subtracted by the last step (Eq. 4a)
+        self._signals.update(self._avic_signals(math.nan, math.nan, math.nan, math.nan))
+
+    @property
+    def calibrating(self) -> bool:
+        """True while ``calibrate`` still collects the errors that set ε₀ and r (never for the
+        non-adaptive baseline, which does not use them)."""
+        cal = self.calibrate
+        return self.adaptive and cal is not None and self._calib_trials < cal["trials"]
+
+    def _avic_signals(self, pred: float, persist: float, err: float, kp: float) -> dict[str, float]:
+        return {
+            "lambda": self._lam,
+            "pred_force_N": pred,
+            "persist_force_N": persist,
+            "pred_error_N": err,
+            "pred_error_lp_N": self._err_lp,
+            "n_components": float(getattr(self.model, "n_components", 0)),
+            "stiffness_Npm": kp,
+            "calibrating": float(self.calibrating),
+        }
+
+    def logistic(self, eps: float) -> float:
+        """λ(ε) of Eq. 4c, in [0, 1]; numerically safe for any ε."""
+        z = -self.r * (eps - self.eps0)  # λ = 1 − 1/(1 + e^z) = e^z / (1 + e^z)
+        if z >= 0.0:
+            return 1.0 / (1.0 + math.exp(-z))
+        ez = math.exp(z)
+        return ez / (1.0 + ez)
+
+    def damping_for(self, kp: float) -> float:
+        """K_d for a scalar K_p under the configured rule (scalar fast path of
+        :func:`damping_from_rule`)."""
+        if self.damping_rule == "critical":
+            return 2.0 * self.damping_ratio * math.sqrt(kp * self.mass_kg)
+        if self.damping_rule == "paper":
+            return math.sqrt(kp) / 4.0
+        return self.fixed_damping
+
+    def stiffness_for(self, lam: float) -> float:
+        """K_p of Eq. 4b."""
+        return self.k_free + (1.0 - lam) * (self.k_max - self.k_free)
+
+    def step(self, obs: Observation, target: TargetSample) -> Command:
+        """Eq. 4a–4c: learn from the newest sample, adapt λ and K_p, add the feed-forward."""
+        s = magnitudes(obs.lin_vel, obs.ang_vel, obs.force, obs.torque)
+        d = s[2:N_STATE]
+        self.before_step(obs, target, s)
+        s_past, pred_now = self.forecast.past()  # S_{t−H} and D̂_t = f(S_{t−H})
+        err = persist = pred = math.nan
+        fused = self._fused and s_past is not None  # learn with the prediction below
+        if s_past is not None:
+            if pred_now is not None and self.model.ready:
+                (pred, pred_tq), (_, _, d_f, d_tq) = pred_now.tolist(), s.tolist()
+                persist = float(s_past[2])
+                err = math.hypot(d_f - pred, d_tq - pred_tq)
+                self._observe_error(err)
+            if not fused:
+                self.learn(s_past, d)
+        calibrating = self.calibrating  # fixed during a trial
+        stiff = not self.adaptive or calibrating or self.hold_k_max()
+        lam = 0.0 if stiff else self._lam
+        kp = self.k_max if stiff else self.stiffness_for(lam)
+        kd = self.damping_for(kp)
+        u_motion, u_force = self.motion_force(obs, target, kp, kd)
+        model = self.model
+        if fused:
+            self.forecast.push(s, model.update_predict(s_past, d, s))
+        else:
+            self.forecast.push(s, model.predict(s) if model.ready else None)
+        pred_next = self.forecast.next_prediction()  # D̂_{t+1}, for the command until t+1
+        u = u_motion  # a fresh array; the force loop (if any) is added in place
+        if u_force is not self._zero:
+            u += u_force
+        self.last_feedforward = self._zero  # λ Ŵ of Eq. 4a as applied (Eq. 8 reuses it)
+        if self.feedforward and pred_next is not None and lam > 0.0:
+            w = self.predicted_wrench(float(pred_next[0]), obs)
+            if target.force_dir is not None:
+                w = w - target.force_dir * float(target.force_dir @ w)
+            self.last_feedforward = lam * w
+            u -= self.last_feedforward
+        sig = self._signals  # the fixed key set of _avic_signals, updated in place
+        sig["lambda"], sig["pred_force_N"], sig["persist_force_N"] = self._lam, pred, persist
+        sig["pred_error_N"], sig["pred_error_lp_N"] = err, self._err_lp
+        sig["stiffness_Npm"], sig["damping_Nspm"] = kp, kd
+        sig["n_components"] = float(getattr(model, "n_components", 0))
+        sig["calibrating"] = 1.0 if calibrating else 0.0
+        return Command(force=u, torque=self.rotation_torque(obs, target))
+
+    def _observe_error(self, err: float) -> None:
+        """λ_t of Eq. 4c from ε̄_t (ε_t low-passed), or keep ε̄_t to calibrate ε₀ and r."""
+        lp = self._err_lp
+        self._err_lp = err if math.isnan(lp) else lp + self._err_alpha * (err - lp)
+        if self.calibrating:
+            self._calib_errors.append(self._err_lp)
+        else:
+            self._lam = self.logistic(self._err_lp)
+
+    # Hooks for Algorithm 1 (seed A §3.2), used by ccm.control.adaptive.modal; plain AVIC learns
+    # every step with one model and never forces K_max.
+    def before_step(self, obs: Observation, target: TargetSample, s: np.ndarray) -> None:
+        """Called first in every step with the state magnitudes S_t (may swap ``self.model``)."""
+
+    def learn(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
+        """Revise the forward model with X_t = [S_{t−1}, D_t] (Eq. 5)."""
+        self.model.update(s_prev, d_now)
+
+    def hold_k_max(self) -> bool:
+        """Whether this step must use K_max regardless of λ (Algorithm 1, line 3)."""
+        return False
+
+    def predicted_wrench(self, f_mag: float, obs: Observation) -> np.ndarray:
+        """Ŵ: the predicted external force as a vector (see ``ff_direction``)."""
+        if self.ff_direction == "measured":
+            fm = math.hypot(*obs.force.tolist())
+            return obs.force * (f_mag / fm) if fm >= 1e-9 else np.zeros(obs.position.shape[0])
+        speed = math.hypot(*obs.lin_vel.tolist())
+        if speed < self.min_speed:
+            return np.zeros(obs.position.shape[0])
+        if self.ff_direction == "against_motion":
+            return obs.lin_vel * (-f_mag / speed)
+        fm = math.hypot(*obs.force.tolist())  # along_motion
+        if fm < 1e-9:
+            return np.zeros(obs.position.shape[0])
+        along = float(obs.force @ obs.lin_vel) / speed  # F·v̂
+        return obs.lin_vel * (f_mag * along / (fm * speed))
+
+    def end_trial(self) -> None:
+        self.model.end_trial()
+        self._end_calibration_trial()
+
+    def _end_calibration_trial(self) -> None:
+        """Count a calibration trial; after the last one set ε₀ and r (module docstring). A
+        trial in which the model made no prediction (and gave no training-window errors)
+        does not count: the controller stays at K_max until it has errors to go by."""
+        if not self.calibrating:
+            return
+        cal = self.calibrate
+        assert cal is not None
+        errs = np.asarray(self._calib_errors, dtype=float)
+        fit = getattr(self.model, "fit_errors", None)
+        if errs.size == 0 and fit is not None and len(fit):  # a frozen model's window
+            errs = lowpass_sequence(np.asarray(fit, dtype=float), self._err_alpha)
+        if errs.size == 0:
+            return
+        self._calib_trials += 1
+        if self.calibrating:
+            return
+        self.eps0 = max(float(np.quantile(errs, cal["quantile"])), 1e-9)
+        self.r = cal["shape"] / self.eps0
+        self._calib_errors = []
+
+    def report(self) -> dict[str, Any]:
+        """K_free, K_max and the logistic's ε₀ and r (NaN while calibrating), for metrics."""
+        return {"k_free": self.k_free, "k_max": self.k_max, **self._logistic_params()}
+
+    def _logistic_params(self) -> dict[str, float | None]:
+        """ε₀ and r, None until calibrated (or when a non-adaptive controller never is)."""
+        return {
+            k: (v if math.isfinite(v) else None) for k, v in (("eps0", self.eps0), ("r", self.r))
+        }
+
+    def calibration_state(self) -> dict[str, Any]:
+        """JSON-safe calibration progress: trials done, ε₀ and r once set, the errors kept."""
+        cal = self.calibrate is not None and not self.calibrating
+        params = self._logistic_params() if cal else {"eps0": None, "r": None}
+        return {"trials": self._calib_trials, **params, "errors": list(self._calib_errors)}
+
+    def load_calibration_state(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`calibration_state` output (ValueError if it does not fit)."""
+        check_state_keys(state, ("trials", "eps0", "r", "errors"))
+        trials = int(state["trials"])
+        errors = [float(e) for e in state["errors"]]
+        if self.calibrate is None:
+            if trials or errors or state["eps0"] is not None:
+                raise ValueError("the saved controller was calibrated; this config is not")
+            return
+        eps0, r = self.eps0, self.r
+        if trials >= self.calibrate["trials"] and state["eps0"] is not None:
+            eps0, r = check_positive("eps0", state["eps0"]), check_positive("r", state["r"])
+        self.eps0, self.r = eps0, r
+        self._calib_trials, self._calib_errors = trials, errors
+
+    def learned_state(self) -> dict[str, Any]:
+        """The forward model (:meth:`IncrementalForwardModel.state_dict` or the fixed GMM's)
+        and the calibration of ε₀ and r; λ and the predictions are per-trial state."""
+        return {"forward_model": self.model.state_dict(), "calibration": self.calibration_state()}
+
+    def load_learned_state(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`learned_state` output into the forward model built from the config
+        (same ``forward_model.kind`` and ``feature_scale``; other settings stay the config's).
+
+        Raises:
+            ConfigError: ``init_from``, on a malformed or mismatched state.
+        """
+        check_state_keys(state, ("forward_model", "calibration"))
+        try:  # the model changes only if the whole snapshot is accepted
+            self.model.load_state_dict(state["forward_model"])
+            self.load_calibration_state(state["calibration"])
+        except STATE_ERRORS as exc:
+            raise state_error(exc) from None

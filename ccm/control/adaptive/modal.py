@@ -1,0 +1,366 @@
+"""AVIC with contact-mode detection and one forward model per mode (seed A §3.2, Algorithm 1).
+
+The base controller of Eq. 4a–4c (:class:`ccm.control.adaptive.avic.AVIC`) runs with the forward
+model of the *current contact mode*. Algorithm 1 of seed A adds, every control step:
+
+1. **Trigger** (line 2): a sudden change of a wrench feature (:class:`TransitionTrigger`),
+   or first sliding after (re)gaining contact, starts a transition.
+2. **K_max and a batch** (line 3): from the trigger on the stiffness is K_max and feature
+   vectors (Eq. 7, :func:`mode_features`) are collected until the batch is full.
+3. **Classify** (line 4): BIRCH (:class:`ModeClassifier`) gives the best mode, its confidence
+   and the second-best; below the confidence threshold a new mode is created (lines 5–7).
+4. **Use and revise the mode's model** (line 9): the chosen mode's IGMM is revised with the
+   batch's samples and then every step, and drives λ (Eq. 4c) as in plain AVIC.
+
+What the controller uses. Only the Observation and the target: the normal force R is the
+measured force along the commanded force direction of the hybrid law (Eq. 1 u_fc), the
+friction force F of Eq. 7 is the measured force in the plane normal to it, and "sliding" means
+the measured velocity in that plane exceeds ``sliding_speed``. Without a force-controlled
+direction, or with R below ``min_normal_force``, the tool is taken to be out of contact: mode
+−1, served by a free-space model.
+
+Evidence rule (ccm's choice; seed A §4.3 says a new mode's model is built "while operating
+under high stiffness" without saying for how long): a mode's model drives λ only once it
+has been revised with at least ``min_mode_samples`` samples; before that K_max is held.
+A known mode has them already, a new one must gather them. ``min_mode_samples: 0`` leaves
+the release to Eq. 4c alone.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ccm.control.adaptive.avic import _OWN_KEYS as _AVIC_KEYS
+from ccm.control.adaptive.avic import AVIC
+from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
+from ccm.control.impedance import FixedImpedance
+from ccm.core.errors import (
+    ConfigError,
+    check_choice,
+    check_int_nonneg,
+    check_int_positive,
+    check_keys,
+    check_nonneg,
+    check_positive,
+    constructor_kwargs,
+)
+from ccm.core.filters import first_order_alpha
+from ccm.core.types import Observation, TargetSample
+from ccm.learn.contact.modes import FEATURE_KINDS, ModeClassifier, TransitionTrigger, feature_vector
+from ccm.learn.mixtures.forward_model import make_forward_model
+
+TRIGGER_SIGNALS = ("tangential_force", "feature")
+FREE = -1  # mode id of "no contact mode" (free space, or not yet classified)
+
+
+def _sub(m: Mapping[str, Any], name: str, allowed: tuple[str, ...], key: str) -> dict[str, Any]:
+    """The ``modes.<name>`` mapping, with unknown keys rejected."""
+    sub = m.get(name)
+    if sub is None:
+        return {}
+    if not isinstance(sub, Mapping):
+        raise ConfigError(f"{key}.{name}", f"must be a mapping, got {type(sub).__name__}")
+    check_keys(f"{key}.{name}", sub, allowed)
+    return dict(sub)
+
+
+class ModalAVIC(AVIC):
+    """AVIC (Eq. 4a–4c) run per contact mode, with Algorithm 1's detection (seed A §3.2).
+
+    Args:
+        modes: Mode-detection settings (all validated, errors name ``controller.modes.*``):
+            ``feature`` (``force_ratio`` = Eq. 7 ``‖F‖/R`` or ``torque_force_ratio``),
+            ``trigger`` (``signal``: ``tangential_force`` [N] or ``feature`` [feature
+            units]; ``threshold``; ``window`` [steps]), ``batch_size`` [samples],
+            ``classifier`` (:class:`ModeClassifier` arguments except ``min_batch``),
+            ``min_normal_force`` [N], ``sliding_speed`` [m/s], ``min_mode_samples``,
+            ``contact_loss_steps`` (steps below ``min_normal_force`` that mean contact is
+            lost; shorter dips, e.g. a force-loop transient, keep the mode),
+            ``feature_lowpass_hz`` (first-order low-pass on ‖F_t‖, ‖τ‖ and R before Eq. 7,
+            restarted on each contact; ``None`` = raw samples; a batch then starts three
+            time constants after its trigger).
+        **avic: the :class:`AVIC` arguments (gains, forward model, impedance).
+    """
+
+    def __init__(self, modes: Mapping[str, Any] | None = None, **avic: Any) -> None:
+        super().__init__(**avic)
+        key = f"{avic.get('key', 'controller')}.modes"
+        m = dict(modes or {})
+        allowed = (
+            "feature", "trigger", "batch_size", "classifier", "min_normal_force",
+            "sliding_speed", "min_mode_samples", "contact_loss_steps", "feature_lowpass_hz",
+            "settle_time_constants",
+        )  # fmt: skip
+        check_keys(key, m, allowed)
+        self.modes_key = key
+        self.feature = check_choice(
+            f"{key}.feature", m.get("feature", "force_ratio"), FEATURE_KINDS
+        )
+        trig = _sub(m, "trigger", ("signal", "threshold", "window", "refractory_steps"), key)
+        self.trigger_signal = check_choice(
+            f"{key}.trigger.signal", trig.pop("signal", "feature"), TRIGGER_SIGNALS
+        )
+        thr = check_positive(f"{key}.trigger.threshold", trig.pop("threshold", 0.07))
+        self._trigger_args = {"threshold_N": thr, "window": 50, **trig}
+        self.batch_size = check_int_positive(f"{key}.batch_size", m.get("batch_size", 100))
+        self._classifier_args = _sub(
+            m, "classifier", ("threshold", "confidence_threshold", "branching_factor"), key
+        )
+        self.min_normal_force = check_nonneg(
+            f"{key}.min_normal_force", m.get("min_normal_force", 1.0)
+        )
+        self.sliding_speed = check_nonneg(f"{key}.sliding_speed", m.get("sliding_speed", 0.01))
+        self.settle_time_constants = check_nonneg(
+            f"{key}.settle_time_constants", m.get("settle_time_constants", 3.0)
+        )
+        lp = m.get("feature_lowpass_hz")
+        self.feature_lowpass_hz = (
+            None if lp is None else check_positive(f"{key}.feature_lowpass_hz", lp)
+        )
+        self.contact_loss_steps = check_int_nonneg(
+            f"{key}.contact_loss_steps", m.get("contact_loss_steps", 20)
+        )
+        self.min_mode_samples = check_int_nonneg(
+            f"{key}.min_mode_samples", m.get("min_mode_samples", 0)
+        )
+        self._fm_cfg = dict(avic.get("forward_model") or {})
+        self._fm_key = f"{avic.get('key', 'controller')}.forward_model"
+        # learned state, kept across trials (reset() does not clear it)
+        self.classifier = ModeClassifier(
+            **{"threshold": 0.05, "confidence_threshold": 0.6, **self._classifier_args},
+            min_batch=self.batch_size,
+            key=f"{key}.classifier",
+        )
+        self.make_trigger()  # validates the trigger settings now, not at the first step
+        self.models: dict[int, Any] = {FREE: self.model}
+        self.samples: dict[int, int] = {FREE: 0}
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> ModalAVIC:
+        """Split a ``controller`` config into ``modes``, AVIC's keys and the impedance keys."""
+        own = {k: v for k, v in cfg.items() if k in _AVIC_KEYS}
+        rest = {k: v for k, v in cfg.items() if k not in (*_AVIC_KEYS, "modes")}
+        imp = constructor_kwargs(FixedImpedance, rest, key)
+        return cls(modes=cfg.get("modes"), **own, impedance=imp, key=key)
+
+    def make_trigger(self) -> TransitionTrigger:
+        """A fresh :class:`TransitionTrigger` from the configured settings."""
+        args = dict(self._trigger_args)
+        args.setdefault("refractory_steps", self.batch_size)
+        return TransitionTrigger(**args, key=f"{self.modes_key}.trigger")
+
+    def reset(self, dim: int, control_dt: float) -> None:
+        super().reset(dim, control_dt)
+        self.trigger = self.make_trigger()
+        self.mode = FREE
+        self.model = self.models[FREE]
+        self._collecting = False
+        self._pending = False  # in contact but not yet classified
+        self._batch: list[np.ndarray] = []
+        self._replay: list[tuple[np.ndarray, np.ndarray]] = []
+        self._conf = (math.nan, math.nan)
+        self._off = self.contact_loss_steps + 1  # steps since R last exceeded min_normal_force
+        self._lp: tuple[float, ...] | None = None  # low-passed (‖F_t‖, ‖τ‖, R)
+        self._alpha = (
+            1.0
+            if self.feature_lowpass_hz is None
+            else first_order_alpha(control_dt, self.feature_lowpass_hz)
+        )
+        # a batch starts settle_time_constants filter time constants (3: 95 % of a step) after
+        # its trigger, so it holds the new surface's ratio, not the filter's ramp from the old one
+        self.settle_steps = (
+            0
+            if self.feature_lowpass_hz is None
+            else math.ceil(
+                self.settle_time_constants / (2.0 * math.pi * self.feature_lowpass_hz) / control_dt
+            )
+        )
+        self._settle = 0
+        self._signals.update(self._mode_signals(0.0, 0.0, 0.0))
+
+    def _mode_signals(self, trig: float, event: float, collecting: float) -> dict[str, float]:
+        return {
+            "mode": float(self.mode),
+            "mode_trigger": trig,
+            "mode_event": event,
+            "mode_confidence": self._conf[0],
+            "mode_second_confidence": self._conf[1],
+            "mode_collecting": collecting,
+            "n_modes": float(self.classifier.n_modes),
+        }
+
+    # ------------------------------------------------------------------ Algorithm 1
+
+    def contact_state(
+        self, obs: Observation, target: TargetSample
+    ) -> tuple[bool, np.ndarray | None, float]:
+        """(in contact, feature vector while sliding else None, ‖F_t‖ [N]) from the measured
+        wrench and velocity and the commanded force direction n."""
+        n = target.force_dir
+        if n is None:
+            self._lp = None
+            return False, None, 0.0
+        f, v, nl = obs.force.tolist(), obs.lin_vel.tolist(), n.tolist()  # plain floats: 2-3 entries
+        fn = _dot(f, nl)
+        r = -fn  # the surface pushes back against the commanded force direction
+        if r < self.min_normal_force:
+            self._lp = None
+            return False, None, 0.0
+        # Eq. 7 uses the friction force: the measured force in the plane normal to n
+        tq = obs.torque.tolist()
+        raw = (math.sqrt(max(_dot(f, f) - fn * fn, 0.0)), math.sqrt(_dot(tq, tq)), r)
+        if self._lp is None or self._alpha >= 1.0:
+            self._lp = raw
+        else:
+            a = self._alpha
+            self._lp = tuple(y + a * (x - y) for x, y in zip(raw, self._lp, strict=True))
+        f_t, tau, r = self._lp
+        vn = _dot(v, nl)
+        if _dot(v, v) - vn * vn < self.sliding_speed**2:  # |v_t|² = |v|² − (v·n)²
+            return True, None, f_t
+        return True, feature_vector(f_t, tau, r, self.feature), f_t
+
+    def before_step(self, obs: Observation, target: TargetSample, s: np.ndarray) -> None:
+        """Algorithm 1, lines 2–7, on this step's measurements."""
+        trig = event = 0.0
+        contact, feat, f_t = self.contact_state(obs, target)
+        self._off = 0 if contact else self._off + 1
+        if self._off > self.contact_loss_steps:  # out of contact for long enough
+            if self.mode != FREE or self._pending or self._collecting:
+                self._switch(FREE)
+                self._pending = self._collecting = False
+                self.trigger.reset()
+        elif contact and self.mode == FREE and not self._collecting:
+            self._pending = True  # contact made: K_max until the first batch is classified
+        if feat is None and contact and self._batch:
+            self._batch, self._replay = [], []  # a batch is one stretch of sliding: restart it
+        if feat is not None:  # sliding in contact: Eq. 7 is a friction estimate
+            x = float(feat[-1]) if self.trigger_signal == "feature" else f_t
+            fired = self.trigger.update(x)
+            if not self._collecting and (fired or self._pending):
+                self._collecting, self._pending = True, False
+                self._batch, self._replay = [], []
+                self._settle = self.settle_steps
+                trig = 1.0
+            if self._collecting and self._settle > 0:
+                self._settle -= 1  # the low-pass is still moving between the two surfaces
+            elif self._collecting:
+                self._batch.append(feat)
+                if len(self._batch) >= self.batch_size:
+                    event = self._decide()
+        self._signals.update(self._mode_signals(trig, event, float(self._collecting)))
+
+    def _decide(self) -> float:
+        """Classify the batch (Algorithm 1, line 4); 1.0 = known mode, 2.0 = new mode."""
+        decision = self.classifier.classify(np.array(self._batch))
+        if decision.is_new:
+            self.models[decision.mode] = make_forward_model(dict(self._fm_cfg), self._fm_key)
+            self.samples[decision.mode] = 0
+        self._conf = (decision.confidence, decision.second_confidence)
+        self._switch(decision.mode)
+        replay, self._batch, self._replay = self._replay, [], []
+        self._collecting = False
+        for s_prev, d in replay:  # the batch's samples belong to the decided mode
+            self.learn(s_prev, d)
+        return 2.0 if decision.is_new else 1.0
+
+    def _switch(self, mode: int) -> None:
+        """Make ``mode``'s model current; λ restarts from K_max (its first error sets it)."""
+        self.mode = mode
+        self.model = self.models[mode]
+        self.forecast.forget_predictions()  # the previous model made them
+        self._lam = 0.0
+
+    def learn(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
+        """Revise the current mode's model; during a batch, keep the sample for the decided
+        mode (it is not known yet) and revise no model."""
+        if self._collecting:
+            self._replay.append((s_prev.copy(), d_now.copy()))
+            return
+        if self._pending:
+            return  # in contact, mode unknown: no model owns these samples
+        self.model.update(s_prev, d_now)
+        self.samples[self.mode] += 1
+
+    def hold_k_max(self) -> bool:
+        """K_max while a transition is being confirmed (Algorithm 1, line 3), while the mode is
+        unknown, and while the current mode's model lacks ``min_mode_samples`` samples."""
+        if self._collecting or self._pending:
+            return True
+        return self.mode != FREE and self.samples[self.mode] < self.min_mode_samples
+
+    def end_trial(self) -> None:
+        """Every mode's model gets the end-of-trial hook (modes persist across trials)."""
+        for model in self.models.values():
+            model.end_trial()
+        self._end_calibration_trial()
+
+    # ------------------------------------------------------------------ learned state
+
+    def learned_state(self) -> dict[str, Any]:
+        """The mode classifier, and per mode (``-1`` = free space) its forward model and the
+        number of samples it has been revised with (``min_mode_samples``), and the
+        calibration of ε₀ and r (:meth:`AVIC.calibration_state`). Batches, the trigger and the
+        current mode are per-trial state."""
+        return {
+            "calibration": self.calibration_state(),
+            "classifier": self.classifier.to_dict(),
+            "modes": [
+                {"mode": m, "samples": self.samples[m], "forward_model": fm.state_dict()}
+                for m, fm in sorted(self.models.items())
+            ],
+        }
+
+    def load_learned_state(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`learned_state` output. Classifier and forward-model settings stay
+        this config's; the modes, their clusters, models and sample counts come from
+        ``state``. The current mode becomes free space.
+
+        Raises:
+            ConfigError: ``init_from``, on a malformed or mismatched state.
+        """
+        check_state_keys(state, ("calibration", "classifier", "modes"))
+        try:
+            settings = self.classifier.to_dict()["settings"]
+            classifier = ModeClassifier.from_dict({**state["classifier"], "settings": settings})
+            models: dict[int, Any] = {}
+            samples: dict[int, int] = {}
+            for rec in state["modes"]:
+                check_state_keys(rec, ("mode", "samples", "forward_model"))
+                mode = rec["mode"]
+                if isinstance(mode, bool) or not isinstance(mode, int) or mode in models:
+                    raise ValueError(f"mode ids must be distinct integers, got {mode!r}")
+                fm = make_forward_model(dict(self._fm_cfg), self._fm_key)
+                fm.load_state_dict(rec["forward_model"])
+                models[mode] = fm
+                samples[mode] = check_int_nonneg(f"modes[{mode}].samples", rec["samples"])
+            n_features = len(feature_vector(1.0, 1.0, 1.0, self.feature))
+            if classifier.n_features_in_ not in (None, n_features):
+                raise ValueError(
+                    f"the saved modes have {classifier.n_features_in_} features, "
+                    f"modes.feature={self.feature} has {n_features}"
+                )
+            expected = [FREE, *range(classifier.n_modes)]
+            if sorted(models) != expected:
+                raise ValueError(
+                    f"modes {sorted(models)} do not match the classifier's {expected} "
+                    "(-1 = free space)"
+                )
+            self.load_calibration_state(state["calibration"])
+        except STATE_ERRORS as exc:
+            raise state_error(exc) from None
+        self.classifier, self.models, self.samples = classifier, models, samples
+        self._switch(FREE)
+
+
+def _dot(a: list[float], b: list[float]) -> float:
+    """``a · b`` of two short lists of floats, summed in order (unrolled up to 3 entries)."""
+    if len(a) == 3:
+        return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    if len(a) == 2:
+        return a[0] * b[0] + a[1] * b[1]
+    return sum(x * y for x, y in zip(a, b, strict=True))

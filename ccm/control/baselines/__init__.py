@@ -1,0 +1,1 @@
+"""Adaptive baselines of seed A §4: AIC, MRAC and BAC."""

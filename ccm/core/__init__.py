@@ -1,0 +1,1 @@
+"""Bottom layer: data types, errors and validation, filters, protocols, run-file formats."""

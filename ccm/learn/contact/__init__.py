@@ -1,0 +1,1 @@
+"""Seed A's contact learners: modes, contact anticipation, collisions, approach speed."""

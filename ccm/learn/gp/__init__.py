@@ -1,0 +1,1 @@
+"""Gaussian-process force models (seed B §3.1) and the offline modal GP baseline of H3."""

@@ -1,0 +1,1 @@
+"""Per-trial and per-condition metrics (the summary.json numbers; names carry units)."""

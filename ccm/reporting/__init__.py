@@ -1,0 +1,1 @@
+"""Claims, the paper pipeline and the report over a directory of runs."""

@@ -1,0 +1,372 @@
+"""``ccm report DIR``: aggregate the runs under DIR into report.md and report.html (issue #8).
+
+DIR is one run directory or a multirun tree: every ``summary.json`` below it is read. The
+run's timing facts (``run_info.json``: ``mpc_rate_hz``, ``mpc_cpu_rate_hz``,
+``mpc_iterations_median``, ``mpc_ms_per_iteration`` per condition) join its conditions as
+metrics of the same names, so a claim can compare rates measured in one process (seed B
+Table 2); summary.json itself stays free of them (it must be identical run to run).
+
+* **Claims** (``experiments/claims.yaml``, :mod:`ccm.reporting.claims`): for each claim whose
+experiment
+  has runs under DIR, the paper's value, ours (mean ± 95 % CI over the seeds found) and the
+  verdict, with the claim's figures from the run of the lowest seed next to it. Claims whose
+  experiment has no run under DIR are listed as not measured.
+* **Metrics**: per experiment and condition, the mean ± 95 % CI over seeds of every numeric
+  metric (pandas), in a collapsible table.
+* **Failures**: every run whose summary says ``failed``, with its cause.
+
+The HTML is self-contained: figures are embedded as base64 PNG, no scripts, no external
+files. Both files are written atomically (temp file + rename).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from ccm.core.errors import ConfigError
+from ccm.core.records import write_atomic
+from ccm.experiment.config_check import check_output_dir
+from ccm.reporting.claim_stats import t95
+from ccm.reporting.claims import Verdict, evaluate, load_claims
+from ccm.reporting.report_screen import SetAside, screen, tally
+
+DEFAULT_CLAIMS = Path(__file__).resolve().parents[2] / "experiments" / "claims.yaml"
+
+
+def collect(root: Path) -> list[tuple[Path, dict[str, Any]]]:
+    """(run dir, summary) for every run under ``root``, sorted by path: each readable
+    summary.json, and each run directory that has its Hydra config but no summary.json (a
+    job killed before it wrote one), as a failed run of the experiment its config names."""
+    if not root.is_dir():
+        raise ConfigError("report.dir", f"{root} is not a directory")
+    runs = []
+    skipped = 0
+    for path in sorted(root.rglob("summary.json")):
+        try:
+            summary = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            runs.append((path.parent, {"status": "failed", "error": f"unreadable: {exc}"}))
+            continue
+        problem = summary_problem(summary)
+        if problem is not None:  # valid JSON of another shape: nothing in it can be trusted
+            print(f"ccm: note: skipped {path}: {problem}", file=sys.stderr)
+            skipped += 1
+            continue
+        runs.append((path.parent, with_run_info(path.parent, summary)))
+    for cfg in sorted(root.rglob(".hydra/config.yaml")):
+        run = cfg.parent.parent
+        if not (run / "summary.json").is_file():
+            runs.append((run, _unfinished(cfg)))
+    if not runs:
+        what = f"usable summary.json under {root} ({skipped} malformed, skipped)"
+        raise ConfigError("report.dir", f"no {what if skipped else f'summary.json under {root}'}")
+    return sorted(runs, key=lambda r: str(r[0]))
+
+
+_JSON_TYPES = {dict: "an object", list: "an array", str: "a string", bool: "a boolean"}
+
+
+def _json_type(value: Any) -> str:
+    if value is None:
+        return "null"
+    return _JSON_TYPES.get(type(value), "a number" if isinstance(value, int | float) else "?")
+
+
+def summary_problem(summary: Any) -> str | None:
+    """Why a parsed summary.json cannot be reported (the fields the report reads have the
+    wrong JSON type), or None: an object whose ``conditions`` map names to objects, whose
+    ``trials`` is a list of objects, ``run_info`` an object and ``experiment`` a string."""
+    if not isinstance(summary, dict):
+        return f"{_json_type(summary)}, not an object"
+    checks = (("conditions", dict, dict), ("trials", list, dict), ("run_info", dict, None))
+    for key, kind, item in checks:
+        value = summary.get(key)
+        if value is None:
+            continue
+        if not isinstance(value, kind):
+            return f"'{key}' is {_json_type(value)}, not {_JSON_TYPES[kind]}"
+        items = value.items() if isinstance(value, dict) else enumerate(value)
+        bad = next(((k, v) for k, v in items if item and not isinstance(v, item)), None)
+        if bad is not None:
+            return f"'{key}' entry {bad[0]!r} is {_json_type(bad[1])}, not an object"
+    if not isinstance(summary.get("experiment"), str | None):
+        return f"'experiment' is {_json_type(summary['experiment'])}, not a string"
+    return None
+
+
+RUN_INFO_METRICS = (
+    "mpc_rate_hz", "mpc_cpu_rate_hz", "mpc_iterations_median", "mpc_ms_per_iteration",
+)  # fmt: skip
+
+
+def with_run_info(run: Path, summary: dict[str, Any]) -> dict[str, Any]:
+    """``summary`` with the run's per-condition wall-clock MPC facts (``RUN_INFO_METRICS`` of
+    ``run_info.json``) added to its conditions, and the run's scalar wall-clock facts (e.g.
+    H3's ``joint_multi_train_s``) under ``run_info``, where a claim reads them with
+    ``condition: run_info``; unchanged without a readable run_info.json."""
+    try:
+        info = json.loads((run / "run_info.json").read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return summary
+    conditions = summary.get("conditions")
+    if not isinstance(info, dict) or not isinstance(conditions, dict):
+        return summary
+    for name in RUN_INFO_METRICS:
+        per_condition = info.get(name)
+        for cond, v in (per_condition if isinstance(per_condition, dict) else {}).items():
+            if isinstance(conditions.get(cond), dict):
+                conditions[cond][name] = v
+    summary["run_info"] = {
+        k: v for k, v in info.items() if isinstance(v, int | float) and not isinstance(v, bool)
+    }
+    return summary
+
+
+def _hydra_config(run: Path) -> dict[str, Any]:
+    """The run's composed config (``.hydra/config.yaml``), or {} without a readable one."""
+    import yaml
+
+    try:
+        data = yaml.safe_load((run / ".hydra" / "config.yaml").read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def truncated(run: Path) -> bool:
+    """Whether the run's trials were cut short (``experiment.fast`` or ``max_time_s``)."""
+    exp = _hydra_config(run).get("experiment")
+    return isinstance(exp, dict) and (bool(exp.get("fast")) or exp.get("max_time_s") is not None)
+
+
+def _unfinished(cfg: Path) -> dict[str, Any]:
+    """The failed-run record of a run directory without summary.json."""
+    data = _hydra_config(cfg.parent.parent)
+    exp = data.get("experiment")
+    return {
+        "experiment": exp.get("name") if isinstance(exp, dict) else None,
+        "seed": data.get("seed"),
+        "status": "failed",
+        "error": "no summary.json (the run did not finish)",
+    }
+
+
+def metrics_table(runs: Sequence[tuple[Path, dict[str, Any]]]) -> Any:
+    """pandas DataFrame: experiment, condition, metric, mean, ci95, n, missing (ok runs
+    only; ``missing``: runs whose value is None or not finite, which the mean leaves out)."""
+    import pandas as pd
+
+    rows = [
+        {"experiment": s.get("experiment"), "seed": s.get("seed"), "condition": cond,
+         "metric": k, "value": _number(v)}
+        for _, s in runs if s.get("status") == "ok"
+        for cond, ms in (s.get("conditions") or {}).items()
+        for k, v in ms.items()
+        if v is None or (isinstance(v, int | float) and not isinstance(v, bool))
+    ]  # fmt: skip
+    cols = ["experiment", "condition", "metric", "mean", "ci95", "n", "missing"]
+    if not rows:
+        return pd.DataFrame(columns=cols)
+    df = pd.DataFrame(rows)
+    g = df.groupby(["experiment", "condition", "metric"], sort=True)["value"]
+    out = g.agg(["mean", "std", "count", "size"]).reset_index()
+    out["missing"] = out.pop("size") - out["count"]
+    # the claims' interval (Student t over seeds); one seed: NaN, shown as "–"
+    out["ci95"] = out["count"].map(t95) * out["std"] / out["count"].clip(lower=1) ** 0.5
+    return out.rename(columns={"count": "n"}).drop(columns="std")
+
+
+def _number(v: float | None) -> float:
+    """A metric value as a float; None and non-finite values as NaN (counted as missing)."""
+    return float(v) if v is not None and math.isfinite(v) else math.nan
+
+
+def _discussed(doc: str) -> str:
+    return f"<br>discussed in <code>{html.escape(doc)}</code>" if doc else ""
+
+
+def _mean(x: float) -> str:
+    return "– (no value)" if math.isnan(x) else f"{x:.4g}"
+
+
+def _ci(x: float) -> str:
+    return "–" if math.isnan(x) else f"{x:.2g}"
+
+
+def _figure(runs: Sequence[tuple[Path, dict]], experiment: str, name: str) -> Path | None:
+    ok = [(s.get("seed", 0), d) for d, s in runs
+          if s.get("experiment") == experiment and s.get("status") == "ok"]  # fmt: skip
+    for _, d in sorted(ok, key=lambda x: (x[0] if isinstance(x[0], int) else 0, str(x[1]))):
+        if (d / "figures" / name).is_file():
+            return d / "figures" / name
+    return None
+
+
+def _verdicts(runs: Sequence[tuple[Path, dict]], claims_path: Path) -> list[Verdict]:
+    summaries = [s for _, s in runs]
+    return [evaluate(c, summaries) for c in load_claims(claims_path)]
+
+
+def usable_runs(root: Path) -> tuple[list[tuple[Path, dict[str, Any]]], list[SetAside]]:
+    """The runs under ``root`` the report pools, and those it sets aside
+    (:mod:`ccm.reporting.report_screen`: duplicates, truncated runs beside full ones)."""
+    return screen(collect(root), truncated)
+
+
+def render(
+    root: Path,
+    claims_path: Path = DEFAULT_CLAIMS,
+    screened: tuple[list[tuple[Path, dict[str, Any]]], list[SetAside]] | None = None,
+) -> tuple[str, str]:
+    """(markdown, html) of the report for the runs under ``root`` (``screened``: the result
+    of :func:`usable_runs`, when the caller already has it)."""
+    runs, aside = screened if screened is not None else usable_runs(root)
+    verdicts = _verdicts(runs, claims_path)
+    table = metrics_table(runs)
+    failures = [(d, f"{s.get('status', '?')}: {s.get('error', '?')}")
+                for d, s in runs if s.get("status") != "ok"]  # fmt: skip
+    failures += [(a.run, f"set aside ({a.kind}): {a.reason}") for a in aside]
+    counts: dict[str, int] = {}
+    for v in verdicts:
+        counts[v.verdict] = counts.get(v.verdict, 0) + 1
+    found = tally(runs, aside)
+    tally_claims = f"{len(verdicts)} in {claims_path.name}: " + ", ".join(
+        f"{n} {k}" for k, n in sorted(counts.items())
+    )
+    cut = sum(truncated(d) for d, _ in runs)
+    banner = (
+        f"**Not results: {cut} of {len(runs)} runs were truncated** (`experiment.fast` or "
+        "`max_time_s`, e.g. `make reproduce-paper-quick`). This report checks that the "
+        "pipeline runs; its verdicts say nothing about the papers."
+        if cut
+        else ""
+    )
+
+    md = [
+        f"# ccm report: {root}", "", *([banner, ""] if banner else []),
+        f"{found}; claims: {tally_claims}.", "",
+        "| claim | source | paper | ours (mean ± 95 % CI) | verdict |", "|---|---|---|---|---|",
+    ]  # fmt: skip
+    hb = [
+        "<!doctype html><html><head><meta charset='utf-8'><title>ccm report</title><style>",
+        "body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em}"
+        "table{border-collapse:collapse;font-size:90%}table.claims{width:100%;table-layout:fixed}"
+        "td,th{border:1px solid #ccc;padding:4px;vertical-align:top;overflow-wrap:anywhere}"
+        "th.claim{width:18%}th.src{width:11%}th.paper{width:11%}th.ours{width:15%}"
+        "th.verdict{width:8%}"
+        ".reproduced{background:#d8f5d0}.partially{background:#fff2c2}"
+        ".not.reproduced,.not-reproduced{background:#f8d0d0}.not-measured{background:#eee}"
+        ".banner{background:#f8d0d0;border:2px solid #b00;padding:8px;font-weight:bold}"
+        "img{max-width:100%;height:auto;display:block;margin:4px 0}",
+        "</style></head><body>",
+        "<h1>ccm report</h1>"
+        + (
+            f"<p class='banner'>{html.escape(banner.replace('**', '').replace('`', ''))}</p>"
+            if banner
+            else ""
+        )
+        + f"<p>{html.escape(str(root))}: {html.escape(found)}; claims: "
+        f"{html.escape(tally_claims)}.</p><h2>Claims</h2><table class='claims'><tr>"
+        "<th class='claim'>claim</th><th class='src'>source</th><th class='paper'>paper</th>"
+        "<th class='ours'>ours (mean ± 95 % CI)</th><th class='verdict'>verdict</th>"
+        "<th>figures</th></tr>",
+    ]
+    for v in verdicts:
+        c = v.claim
+        figs = [(f, _figure(runs, c.experiment, f)) for f in c.figures]
+        md_figs = " ".join(f"[{f}]({p.relative_to(root)})" for f, p in figs if p is not None)
+        note = f" ({c.note})" if c.note else ""
+        doc = f"; discussed in `{c.discussion}`" if c.discussion else ""
+        md.append(
+            f"| **{c.id}**: {c.statement}{note} | {c.paper}, {c.source}, `{c.experiment}`{doc} | "
+            f"{c.paper_value} | {v.ours} | **{v.verdict}** {md_figs} |"
+        )
+        imgs = "".join(
+            f"<img alt='{html.escape(f)}' src='data:image/png;base64,"
+            f"{base64.b64encode(p.read_bytes()).decode()}'>"
+            for f, p in figs if p is not None
+        )  # fmt: skip
+        hb.append(
+            f"<tr><td><b>{html.escape(c.id)}</b>: {html.escape(c.statement + note)}</td>"
+            f"<td>{html.escape(f'{c.paper}, {c.source}')}<br><code>{html.escape(c.experiment)}"
+            f"</code>{_discussed(c.discussion)}</td><td>{html.escape(c.paper_value)}</td>"
+            f"<td>{html.escape(v.ours)}</td>"
+            f"<td class='{v.verdict.replace(' ', '-')}'><b>{html.escape(v.verdict)}</b></td>"
+            f"<td>{imgs}</td></tr>"
+        )
+    hb.append("</table><h2>Runs not pooled: failed, interrupted, set aside</h2>")
+    md += ["", "## Runs not pooled: failed, interrupted, set aside", ""]
+    if failures:
+        md += [f"* `{d}`: {e}" for d, e in failures]
+        hb.append("<ul>" + "".join(
+            f"<li><code>{html.escape(str(d))}</code>: {html.escape(str(e))}</li>"
+            for d, e in failures) + "</ul>")  # fmt: skip
+    else:
+        md.append("None.")
+        hb.append("<p>None.</p>")
+    md += ["", "## Metrics (mean ± 95 % CI over seeds)", ""]
+    hb.append("<h2>Metrics (mean ± 95 % CI over seeds)</h2>")
+    for exp, sub in table.groupby("experiment", sort=True):
+        md += [
+            f"### {exp}",
+            "",
+            "| condition | metric | mean | ± CI | n | missing |",
+            "|---|---|---|---|---|---|",
+        ]
+        md += [f"| {r.condition} | {r.metric} | {_mean(r.mean)} | {_ci(r.ci95)} | {r.n} | "
+               f"{r.missing} |" for r in sub.itertuples()]  # fmt: skip
+        md.append("")
+        head = "".join(
+            f"<th>{h}</th>" for h in ("condition", "metric", "mean", "± CI", "n", "missing")
+        )
+        hb.append(f"<details><summary>{html.escape(str(exp))}</summary><table><tr>{head}</tr>")
+        hb += [f"<tr><td>{html.escape(str(r.condition))}</td><td>{html.escape(str(r.metric))}"
+               f"</td><td>{_mean(r.mean)}</td><td>{_ci(r.ci95)}</td><td>{r.n}</td>"
+               f"<td>{r.missing}</td></tr>"
+               for r in sub.itertuples()]  # fmt: skip
+        hb.append("</table></details>")
+    hb.append("</body></html>")
+    return "\n".join(md) + "\n", "\n".join(hb) + "\n"
+
+
+def main(argv: Sequence[str]) -> int:
+    """``ccm report DIR [--claims FILE]``: write DIR/report.md and DIR/report.html."""
+    args = list(argv)
+    if {"-h", "--help"} & set(args):
+        print(
+            "usage: ccm report DIR [--claims FILE]: report.md + report.html for the runs under DIR"
+        )
+        return 0
+    claims = DEFAULT_CLAIMS
+    if "--claims" in args:
+        i = args.index("--claims")
+        if i + 1 >= len(args):
+            raise ConfigError("report.claims", "--claims needs a file")
+        claims = Path(args.pop(i + 1))
+        args.pop(i)
+    if len(args) != 1:
+        raise ConfigError("report", "usage: ccm report DIR [--claims FILE]")
+    root = Path(args[0])
+    if root.is_dir():  # before the work: a report it cannot write is one line, not a traceback
+        check_output_dir("report.dir", root)
+    screened = usable_runs(root)
+    md, page = render(root, claims, screened)
+    try:
+        write_atomic(root / "report.md", md)
+        write_atomic(root / "report.html", page)
+    except OSError as exc:
+        raise ConfigError("report.dir", f"cannot write the report: {exc}") from None
+    print(f"ccm: report -> {root / 'report.html'} and report.md")
+    runs, aside = screened
+    if not any(s.get("status") == "ok" for _, s in runs):
+        print(f"ccm: error: report.dir: no usable run under {root} ({tally(runs, aside)}); "
+              "the report lists why", file=sys.stderr)  # fmt: skip
+        return 1
+    return 0

@@ -1,0 +1,389 @@
+"""Configuration and scene description of the PyBullet 3D backend (:mod:`ccm.sim.pybullet.backend`).
+
+The frozen dataclasses here parse and validate the ``sim`` config group (backend settings,
+the block tool) and ``task.scene`` (a table with friction patches, static boxes); every
+error names the offending key. Below them, plain helpers on that description: the boxes of
+the ``boxes`` patch mode and the split of the contact ground truth into table and box
+(wall) forces (``StepInfo.extra``: ``table_normal_N``, ``box_normal_N``,
+``box_friction_N``). Nothing here imports PyBullet.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from ccm.core.errors import (
+    ConfigError,
+    check_bool,
+    check_choice,
+    check_int_positive,
+    check_keys,
+    check_nonneg,
+    check_positive,
+    check_range,
+    check_vector,
+    to_plain,
+)
+from ccm.sim.sensor import SensorConfig
+
+#: Franka's documented "ready" pose, used as IK seed and default rest posture [rad]
+PANDA_READY = (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4)
+
+_SIM_KEYS = (
+    "name",
+    "description",
+    "nominal_mass_kg",  # read by controllers (configs/controller/*.yaml), not the simulator
+    "dt",
+    "control_decimation",
+    "gui",
+    "solver_iterations",
+    "max_speed",
+    "tool",
+    "rest_posture",
+    "nullspace_stiffness",
+    "nullspace_damping",
+    "orientation_stiffness",
+    "orientation_damping",
+    "task_coriolis_compensation",
+    "contact_stiffness",
+    "contact_damping",
+    "patch_mode",
+    "footprint_grid",
+    "dynamics",
+    "sensor",
+)
+PATCH_MODES = ("friction_map", "footprint", "boxes")
+#: where the torque loop's model terms come from (``PyBullet3DConfig.dynamics``)
+DYNAMICS = ("pinocchio", "pybullet")
+
+
+# --------------------------------------------------------------------------- config
+
+
+def _vec(key: str, value: Any, n: int) -> tuple[float, ...]:
+    return tuple(float(v) for v in check_vector(key, value, n))
+
+
+@dataclass(frozen=True)
+class ToolSpec:
+    """The rigid block fixed to the flange.
+
+    Attributes:
+        size: full extents [m] along the tool frame's x, y, z (z along the flange axis).
+        mass: [kg] > 0.
+    """
+
+    size: tuple[float, float, float] = (0.04, 0.04, 0.04)
+    mass: float = 0.15
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> ToolSpec:
+        d = to_plain(cfg, key)
+        check_keys(key, d, ("size", "mass"))
+        size = _vec(f"{key}.size", d.get("size", cls.size), 3)
+        for i, s in enumerate(size):
+            check_positive(f"{key}.size[{i}]", s)
+        mass = check_positive(f"{key}.mass", d.get("mass", cls.mass))
+        return cls(size=(size[0], size[1], size[2]), mass=mass)
+
+
+@dataclass(frozen=True)
+class PyBullet3DConfig:
+    """Backend settings (``configs/sim/pybullet3d.yaml`` explains each default).
+
+    Attributes:
+        dt: physics step [s] (1 kHz, issue #4).
+        control_decimation: physics steps per control step.
+        gui: open the PyBullet GUI instead of the headless DIRECT client.
+        solver_iterations: Bullet constraint solver iterations.
+        max_speed: runaway guard used by the runner [m/s].
+        tool: the block tool.
+        rest_posture: joint configuration seeding the start IK [rad], shape (7,).
+        nullspace_stiffness: K_n [N m/rad] of the posture term.
+        nullspace_damping: D_n [N m s/rad] of the posture term.
+        orientation_stiffness: K_o [N m/rad] of the built-in orientation hold.
+        orientation_damping: D_o [N m s/rad] of the built-in orientation hold.
+        task_coriolis_compensation: add ``−Jᵀ Λ J̇ q̇`` so a zero wrench gives zero tool
+            acceleration even while the arm moves (e.g. in the null space).
+        contact_stiffness: tool contact stiffness [N/m] (Bullet's compliant contact model).
+        contact_damping: tool contact damping [N s/m].
+        patch_mode: ``friction_map`` (one continuous table top whose friction is set each
+            physics step from the patch under the tool point), ``footprint`` (the same top,
+            its friction the pressure-weighted mean over the tool's face:
+            :mod:`ccm.sim.pybullet.footprint`) or ``boxes`` (thin patch boxes flush with the
+            top; the tool's edge catches on their side faces).
+        footprint_grid: n of the n × n grid ``footprint`` integrates the face on.
+        dynamics: where the torque loop's J, J̇ q̇, h, M⁻¹ Jᵀ and Λ come from: ``pinocchio``
+            (one call per physics step, :mod:`ccm.sim.pybullet.dynamics`) or ``pybullet``
+            (its ``calculateJacobian`` twice, ``calculateInverseDynamics``,
+            ``calculateMassMatrix`` and two inverses). The same model either way.
+        sensor: F/T sensor noise and bias (force (3,), torque (3,)).
+    """
+
+    dt: float = 0.001
+    control_decimation: int = 1
+    gui: bool = False
+    solver_iterations: int = 50
+    max_speed: float = 5.0
+    tool: ToolSpec = field(default_factory=ToolSpec)
+    rest_posture: tuple[float, ...] = PANDA_READY
+    nullspace_stiffness: float = 10.0
+    nullspace_damping: float = 2.0
+    orientation_stiffness: float = 30.0
+    orientation_damping: float = 2.0
+    task_coriolis_compensation: bool = True
+    contact_stiffness: float = 1.0e5
+    contact_damping: float = 1.0e3
+    patch_mode: str = "friction_map"
+    footprint_grid: int = 32
+    dynamics: str = "pinocchio"
+    sensor: SensorConfig = field(default_factory=lambda: SensorConfig.ideal(3, 3))
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, prefix: str = "sim") -> PyBullet3DConfig:
+        """Parse the ``sim`` config group; errors name keys as ``sim.<field>``."""
+        d = to_plain(cfg, prefix)
+        check_keys(prefix, d, _SIM_KEYS)
+        if "name" in d and d["name"] != "pybullet3d":
+            raise ConfigError(f"{prefix}.name", f"must be 'pybullet3d', got {d['name']!r}")
+        return cls(
+            dt=check_positive(f"{prefix}.dt", d.get("dt", cls.dt)),
+            control_decimation=check_int_positive(
+                f"{prefix}.control_decimation", d.get("control_decimation", 1)
+            ),
+            gui=check_bool(f"{prefix}.gui", d.get("gui", False)),
+            solver_iterations=check_int_positive(
+                f"{prefix}.solver_iterations", d.get("solver_iterations", cls.solver_iterations)
+            ),
+            max_speed=check_positive(f"{prefix}.max_speed", d.get("max_speed", cls.max_speed)),
+            tool=ToolSpec.from_mapping(d.get("tool"), f"{prefix}.tool"),
+            rest_posture=_vec(f"{prefix}.rest_posture", d.get("rest_posture", PANDA_READY), 7),
+            nullspace_stiffness=check_nonneg(
+                f"{prefix}.nullspace_stiffness", d.get("nullspace_stiffness", 10.0)
+            ),
+            nullspace_damping=check_nonneg(
+                f"{prefix}.nullspace_damping", d.get("nullspace_damping", 2.0)
+            ),
+            orientation_stiffness=check_nonneg(
+                f"{prefix}.orientation_stiffness", d.get("orientation_stiffness", 30.0)
+            ),
+            orientation_damping=check_nonneg(
+                f"{prefix}.orientation_damping", d.get("orientation_damping", 2.0)
+            ),
+            task_coriolis_compensation=check_bool(
+                f"{prefix}.task_coriolis_compensation", d.get("task_coriolis_compensation", True)
+            ),
+            contact_stiffness=check_positive(
+                f"{prefix}.contact_stiffness", d.get("contact_stiffness", cls.contact_stiffness)
+            ),
+            contact_damping=check_positive(
+                f"{prefix}.contact_damping", d.get("contact_damping", cls.contact_damping)
+            ),
+            patch_mode=check_choice(
+                f"{prefix}.patch_mode", d.get("patch_mode", cls.patch_mode), PATCH_MODES
+            ),
+            footprint_grid=check_int_positive(
+                f"{prefix}.footprint_grid", d.get("footprint_grid", cls.footprint_grid)
+            ),
+            dynamics=check_choice(f"{prefix}.dynamics", d.get("dynamics", cls.dynamics), DYNAMICS),
+            sensor=SensorConfig.from_mapping(d.get("sensor"), 3, 3, f"{prefix}.sensor"),
+        )
+
+
+# --------------------------------------------------------------------------- scene
+
+
+@dataclass(frozen=True)
+class TablePatch:
+    """A rectangle of the table top with its own friction (seed A Fig. 1a, in 3D).
+
+    Attributes:
+        center: [x, y] [m]; size: [w, d] full extents [m]; friction: Coulomb coefficient.
+    """
+
+    center: tuple[float, float]
+    size: tuple[float, float]
+    friction: float
+
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(x0, x1, y0, y1)``."""
+        (cx, cy), (w, h) = self.center, self.size
+        return cx - w / 2, cx + w / 2, cy - h / 2, cy + h / 2
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    """A static table: top at ``height`` [m], rectangle ``center ± size/2`` in x, y.
+
+    Attributes:
+        height: z of the top surface [m] > 0.
+        size: [w, d] [m]; center: [x, y] [m] (default in front of the robot).
+        friction: Coulomb coefficient outside the patches; restitution: in [0, 1].
+        patches: non-overlapping friction patches inside the table.
+    """
+
+    height: float
+    size: tuple[float, float] = (0.8, 1.0)
+    center: tuple[float, float] = (0.6, 0.0)
+    friction: float = 0.5
+    restitution: float = 0.0
+    patches: tuple[TablePatch, ...] = ()
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> TableSpec:
+        d = to_plain(cfg, key)
+        check_keys(key, d, ("height", "size", "center", "friction", "restitution", "patches"))
+        if "height" not in d:
+            raise ConfigError(f"{key}.height", "is required (z of the table top in m)")
+        height = check_positive(f"{key}.height", d["height"])
+        size = _vec(f"{key}.size", d.get("size", cls.size), 2)
+        for i, s in enumerate(size):
+            check_positive(f"{key}.size[{i}]", s)
+        center = _vec(f"{key}.center", d.get("center", cls.center), 2)
+        friction = check_nonneg(f"{key}.friction", d.get("friction", cls.friction))
+        restitution = check_range(f"{key}.restitution", d.get("restitution", 0.0), 0.0, 1.0)
+        raw = d.get("patches")
+        if raw is None:
+            raw = []
+        if isinstance(raw, Mapping | str) or not isinstance(raw, Sequence):
+            raise ConfigError(f"{key}.patches", f"must be a list, got {type(raw).__name__}")
+        tx0, tx1 = center[0] - size[0] / 2, center[0] + size[0] / 2
+        ty0, ty1 = center[1] - size[1] / 2, center[1] + size[1] / 2
+        patches: list[TablePatch] = []
+        for i, pcfg in enumerate(raw):
+            pk = f"{key}.patches[{i}]"
+            pd = to_plain(pcfg, pk)
+            check_keys(pk, pd, ("center", "size", "friction"))
+            for req in ("center", "size", "friction"):
+                if req not in pd:
+                    raise ConfigError(f"{pk}.{req}", "is required")
+            psize = _vec(f"{pk}.size", pd["size"], 2)
+            for j, s in enumerate(psize):
+                check_positive(f"{pk}.size[{j}]", s)
+            p = TablePatch(
+                center=_vec(f"{pk}.center", pd["center"], 2),  # type: ignore[arg-type]
+                size=psize,  # type: ignore[arg-type]
+                friction=check_nonneg(f"{pk}.friction", pd["friction"]),
+            )
+            x0, x1, y0, y1 = p.bounds()
+            eps = 1e-9
+            if x0 < tx0 - eps or x1 > tx1 + eps or y0 < ty0 - eps or y1 > ty1 + eps:
+                raise ConfigError(f"{pk}.center", "patch must lie inside the table top")
+            for j, q in enumerate(patches):
+                qx0, qx1, qy0, qy1 = q.bounds()
+                if x0 < qx1 - eps and qx0 < x1 - eps and y0 < qy1 - eps and qy0 < y1 - eps:
+                    raise ConfigError(f"{pk}.center", f"patch overlaps patches[{j}]")
+            patches.append(p)
+        return cls(
+            height=height, size=size, center=center, friction=friction,  # type: ignore[arg-type]
+            restitution=restitution, patches=tuple(patches),
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Box3DSpec:
+    """A static axis-aligned block (a wall or an obstacle).
+
+    Attributes:
+        center: [x, y, z] [m]; size: full extents [m];
+        friction: Coulomb coefficient (default 0.5); restitution: in [0, 1] (default 0).
+    """
+
+    center: tuple[float, float, float]
+    size: tuple[float, float, float]
+    friction: float = 0.5
+    restitution: float = 0.0
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> Box3DSpec:
+        d = to_plain(cfg, key)
+        check_keys(key, d, ("center", "size", "friction", "restitution"))
+        for req in ("center", "size"):
+            if req not in d:
+                raise ConfigError(f"{key}.{req}", "is required")
+        size = _vec(f"{key}.size", d["size"], 3)
+        for i, s in enumerate(size):
+            check_positive(f"{key}.size[{i}]", s)
+        return cls(
+            center=_vec(f"{key}.center", d["center"], 3),  # type: ignore[arg-type]
+            size=size,  # type: ignore[arg-type]
+            friction=check_nonneg(f"{key}.friction", d.get("friction", 0.5)),
+            restitution=check_range(f"{key}.restitution", d.get("restitution", 0.0), 0.0, 1.0),
+        )
+
+
+@dataclass(frozen=True)
+class Scene3D:
+    """A 3D scene: an optional table (with friction patches) and static boxes."""
+
+    table: TableSpec | None = None
+    boxes: tuple[Box3DSpec, ...] = ()
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, prefix: str = "task.scene") -> Scene3D:
+        """Parse ``{table, boxes}``; keys in errors start with ``prefix``."""
+        d = to_plain(cfg, prefix)
+        check_keys(prefix, d, ("table", "boxes"))
+        table = None
+        if d.get("table") is not None:
+            table = TableSpec.from_mapping(d["table"], f"{prefix}.table")
+        raw = d.get("boxes")
+        if raw is None:
+            raw = []
+        if isinstance(raw, Mapping | str) or not isinstance(raw, Sequence):
+            raise ConfigError(f"{prefix}.boxes", f"must be a list, got {type(raw).__name__}")
+        boxes = tuple(Box3DSpec.from_mapping(b, f"{prefix}.boxes[{i}]") for i, b in enumerate(raw))
+        return cls(table=table, boxes=boxes)
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def grid_cells(
+    bounds: tuple[float, float, float, float], holes: Sequence[tuple[float, float, float, float]]
+) -> list[tuple[float, float, float, float]]:
+    """Cells ``(x0, x1, y0, y1)`` of the grid spanned by the holes' edges that no hole covers."""
+    bx0, bx1, by0, by1 = bounds
+    xs = sorted({bx0, bx1, *(v for h in holes for v in h[:2])})
+    ys = sorted({by0, by1, *(v for h in holes for v in h[2:])})
+    cells = []
+    for x0, x1 in zip(xs, xs[1:], strict=False):
+        for y0, y1 in zip(ys, ys[1:], strict=False):
+            if x1 - x0 < 1e-9 or y1 - y0 < 1e-9:
+                continue
+            mx, my = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+            if not any(h[0] < mx < h[1] and h[2] < my < h[3] for h in holes):
+                cells.append((x0, x1, y0, y1))
+    return cells
+
+
+def boxed_table_parts(
+    table: TableSpec,
+) -> list[tuple[tuple[float, float, float], tuple[float, float, float], float, bool]]:
+    """``patch_mode: boxes``: the static boxes that make up the table, in creation order.
+
+    A base slab, the top layer (1 cm, or half the height if less) cut around the patches
+    into the cells of :func:`grid_cells`, then one box per patch flush with the top.
+
+    Returns:
+        ``(center, half_extents, friction, is_patch)`` per box [m].
+    """
+    layer = min(0.01, table.height / 2.0)  # thickness of the top layer [m]
+    (cx, cy), (w, d) = table.center, table.size
+    base_h = table.height - layer
+    parts = [((cx, cy, base_h / 2.0), (w / 2, d / 2, base_h / 2), table.friction, False)]
+    bounds = (cx - w / 2, cx + w / 2, cy - d / 2, cy + d / 2)
+    zc = table.height - layer / 2.0
+
+    def cell(x0: float, x1: float, y0: float, y1: float) -> tuple[Any, Any]:
+        return ((x0 + x1) / 2, (y0 + y1) / 2, zc), ((x1 - x0) / 2, (y1 - y0) / 2, layer / 2)
+
+    holes = [pt.bounds() for pt in table.patches]
+    for c in grid_cells(bounds, holes):
+        parts.append((*cell(*c), table.friction, False))
+    for pt in table.patches:
+        parts.append((*cell(*pt.bounds()), pt.friction, True))
+    return parts

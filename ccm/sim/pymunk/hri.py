@@ -1,0 +1,191 @@
+"""Scene elements for physical human-robot interaction (seed B, Haninger et al.).
+
+Three external forces on the end-effector, parsed like the rest of the scene vocabulary
+(:mod:`ccm.sim.pymunk.scene`): every invalid value raises :class:`ccm.core.errors.ConfigError`
+naming the full dotted key, e.g. ``task.scene.human.max_force``. The force laws live in
+:mod:`ccm.sim.pymunk.hri_forces`. All three act on the end-effector's centre (the tool-centre
+point) and are measured by the single F/T sensor, which sees ``f = f_h + f_c + f_d``
+(seed B §3.1):
+
+* :class:`CompliantWallSpec` (``compliant_walls``): a unilateral spring-damper contact, the
+  environment with a compliant element of seed B §5.3/§6.1 (15, 45, 126 N/mm; contact
+  position varied by ±1 cm). ``f_c``.
+* :class:`HumanSpec` (``human``): a simulated hand pulling the tool toward one of several
+  goals with a bounded, noisy PD force (seed B §3.1 human force ``f_h``, §4.1 discrete
+  human goals). ``f_h``.
+* :class:`VibrationSpec` (``vibration``): a sinusoidal polishing-spindle disturbance
+  (seed B §3.1, §6.3: predominantly high-frequency). ``f_d``.
+
+The parsing helpers and the region shape come from :mod:`ccm.sim.pymunk.parse`, which
+:mod:`ccm.sim.pymunk.scene` shares.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from ccm.core.errors import ConfigError, check_keys, check_nonneg, check_positive, to_plain
+from ccm.sim.pymunk.parse import RegionSpec, Vec2, as_list, vec2
+
+
+def _require(key: str, d: dict[str, Any], names: tuple[str, ...]) -> None:
+    for name in names:
+        if name not in d:
+            raise ConfigError(f"{key}.{name}", "is required")
+
+
+@dataclass(frozen=True)
+class CompliantWallSpec:
+    """A unilateral compliant contact acting on the end-effector centre (seed B §6.1).
+
+    The wall surface is the line through ``point`` (shifted by ``offset`` along ``normal``)
+    perpendicular to ``normal``; the wall occupies the half-plane behind it. With ``p`` the EE
+    centre and ``v`` its velocity, the penetration is ``d = (point + offset n - p) . n``. For
+    ``d > 0`` the force on the EE is ``F n`` with ``F = max(0, k d - c v . n)``: a spring-damper
+    that never pulls. Each reset draws ``offset`` uniformly from ``[-j, j]`` (seed B §6.1,
+    "higher variance (±1 cm)"); ``offset = 0`` when ``j = 0``.
+
+    Attributes:
+        point: a point on the wall surface [m].
+        normal: unit normal from the wall into free space. Any non-zero vector is accepted and
+            normalised; a (near-)zero vector is rejected.
+        stiffness: k [N/m] > 0 (seed B §5.3: 15e3, 45e3, 126e3).
+        damping: c [N s/m] >= 0 (default 0).
+        position_jitter_m: j [m] >= 0 (default 0).
+    """
+
+    point: Vec2
+    normal: Vec2
+    stiffness: float
+    damping: float = 0.0
+    position_jitter_m: float = 0.0
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> CompliantWallSpec:
+
+        d = to_plain(cfg, key)
+        check_keys(key, d, ("point", "normal", "stiffness", "damping", "position_jitter_m"))
+        _require(key, d, ("point", "normal", "stiffness"))
+        nx, ny = vec2(f"{key}.normal", d["normal"])
+        norm = math.hypot(nx, ny)
+        if norm < 1e-9:
+            raise ConfigError(f"{key}.normal", f"must be a non-zero vector, got {d['normal']!r}")
+        return cls(
+            point=vec2(f"{key}.point", d["point"]),
+            normal=(nx / norm, ny / norm),
+            stiffness=check_positive(f"{key}.stiffness", d["stiffness"]),
+            damping=check_nonneg(f"{key}.damping", d.get("damping", 0.0)),
+            position_jitter_m=check_nonneg(
+                f"{key}.position_jitter_m", d.get("position_jitter_m", 0.0)
+            ),
+        )
+
+
+@dataclass(frozen=True)
+class HumanSpec:
+    """A simulated human hand holding the tool: a bounded, noisy PD pull toward a goal.
+
+    The hand force is ``F = sat(k (g - p) - c v + n(t))`` with ``g`` the active goal, ``p``
+    and ``v`` the EE centre's position and velocity, ``n(t)`` a low-frequency noise (per axis,
+    white Gaussian through a first-order low-pass at ``noise_cutoff_hz``, stationary std
+    ``noise_std``) and ``sat`` scaling the vector down to norm ``max_force``. ``F = 0`` for
+    ``t < active_after_s``; over the next ``ramp_s`` it is scaled by the raised cosine
+    ``(1 - cos(pi (t - active_after_s) / ramp_s)) / 2`` (a human's force builds up over a
+    few hundred ms, it does not step).
+
+    Attributes:
+        goals: candidate goals ``[[x, y], ...]`` [m], at least one (seed B §4.1: discrete
+            human goals).
+        goal_index: index of the active goal, or -1 to draw it uniformly at each reset.
+        stiffness: k [N/m] > 0; damping: c [N s/m] >= 0 (default 0).
+        max_force: bound on the norm of the hand force [N] > 0.
+        noise_std: stationary std of the noise per axis [N] >= 0 (default 0).
+        noise_cutoff_hz: cut-off of the noise low-pass [Hz] > 0 (default 5.0).
+        active_after_s: the hand force is zero before this time [s] >= 0 (default 0).
+        ramp_s: rise time of the force after ``active_after_s`` [s] >= 0 (default 0: a step).
+    """
+
+    goals: tuple[Vec2, ...]
+    stiffness: float
+    max_force: float
+    goal_index: int = 0
+    damping: float = 0.0
+    noise_std: float = 0.0
+    noise_cutoff_hz: float = 5.0
+    active_after_s: float = 0.0
+    ramp_s: float = 0.0
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> HumanSpec:
+
+        d = to_plain(cfg, key)
+        check_keys(key, d, (
+            "goals", "goal_index", "stiffness", "damping", "max_force", "noise_std",
+            "noise_cutoff_hz", "active_after_s", "ramp_s",
+        ))  # fmt: skip
+        _require(key, d, ("goals", "stiffness", "max_force"))
+        goals = tuple(
+            vec2(f"{key}.goals[{i}]", g) for i, g in enumerate(as_list(f"{key}.goals", d["goals"]))
+        )
+        if not goals:
+            raise ConfigError(f"{key}.goals", "must hold at least one goal [x, y]")
+        idx = d.get("goal_index", 0)
+        if isinstance(idx, bool) or not isinstance(idx, int) or not -1 <= idx < len(goals):
+            raise ConfigError(
+                f"{key}.goal_index",
+                f"must be an integer in [0, {len(goals) - 1}] or -1 (random), got {idx!r}",
+            )
+        return cls(
+            goals=goals,
+            stiffness=check_positive(f"{key}.stiffness", d["stiffness"]),
+            max_force=check_positive(f"{key}.max_force", d["max_force"]),
+            goal_index=int(idx),
+            damping=check_nonneg(f"{key}.damping", d.get("damping", 0.0)),
+            noise_std=check_nonneg(f"{key}.noise_std", d.get("noise_std", 0.0)),
+            noise_cutoff_hz=check_positive(
+                f"{key}.noise_cutoff_hz", d.get("noise_cutoff_hz", cls.noise_cutoff_hz)
+            ),
+            active_after_s=check_nonneg(f"{key}.active_after_s", d.get("active_after_s", 0.0)),
+            ramp_s=check_nonneg(f"{key}.ramp_s", d.get("ramp_s", 0.0)),
+        )
+
+
+@dataclass(frozen=True)
+class VibrationSpec:
+    """A polishing-spindle disturbance ``f_d(t)`` (seed B §3.1, §6.3).
+
+    Per axis ``i``: ``f_i(t) = a_i sin(2 pi f t + phi_i) + noise_std * w_i`` with phases
+    ``phi_i`` drawn uniformly in ``[0, 2 pi)`` at each reset and ``w_i`` white standard normal
+    per physics step. With a ``region`` the force is zero while the EE centre is outside it.
+
+    Attributes:
+        amplitude: ``[a_x, a_y]`` [N], each >= 0.
+        frequency_hz: f [Hz] > 0 (must lie below the physics Nyquist rate, checked by the
+            simulator).
+        region: where the disturbance acts (everywhere if ``None``).
+        noise_std: white noise std per axis [N] >= 0 (default 0).
+    """
+
+    amplitude: Vec2
+    frequency_hz: float
+    region: RegionSpec | None = None
+    noise_std: float = 0.0
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> VibrationSpec:
+
+        d = to_plain(cfg, key)
+        check_keys(key, d, ("amplitude", "frequency_hz", "region", "noise_std"))
+        _require(key, d, ("amplitude", "frequency_hz"))
+        amp = vec2(f"{key}.amplitude", d["amplitude"])
+        for i, a in enumerate(amp):
+            check_nonneg(f"{key}.amplitude[{i}]", a)
+        region = d.get("region")
+        return cls(
+            amplitude=amp,
+            frequency_hz=check_positive(f"{key}.frequency_hz", d["frequency_hz"]),
+            region=None if region is None else RegionSpec.from_mapping(region, f"{key}.region"),
+            noise_std=check_nonneg(f"{key}.noise_std", d.get("noise_std", 0.0)),
+        )
