@@ -292,7 +292,7 @@ def test_collision_transition_keeps_the_press_across_the_motion(pattern) -> None
         return float(c.step(obs_at(0.0), tgt).force @ press)
 
     # across the motion: ~F_d (1 + k_fp) pressed down; along it: only K* x 0 + D* x v
-    assert command((0.05, 0.0)) == pytest.approx(10.0 * (1 + c.force_kp), rel=0.05)
+    assert command((0.05, 0.0)) == pytest.approx(10.0 * (1 + c.loop.force_kp), rel=0.05)
     assert abs(command((0.0, -0.05))) < 10.0
 
 
@@ -328,7 +328,7 @@ def test_transition_controllers_add_the_base_feedforward_when_configured(
     ff = np.array([1.5, -0.5])
 
     def base_step(self, obs, target):  # the base's Eq. 4a with a known feed-forward
-        self.last_feedforward, self.last_force_loop = ff, np.zeros(2)
+        self.last_feedforward, self.loop.last_force_loop = ff, np.zeros(2)
         return Command(force=np.zeros(2), torque=np.zeros(1))
 
     monkeypatch.setattr(AVIC, "step", base_step)

@@ -95,7 +95,10 @@ def test_same_seed_gives_identical_summary(tmp_path: Path) -> None:
         ("experiment.trials=-1", "experiment.trials: must be an integer >= 1"),
         ("seed=abc", "seed: must be an integer"),
         ("task.pattern=[]", "task.pattern: must contain at least one segment"),
-        ("controller.damping_rule=magic", "controller.damping_rule: unknown value 'magic'"),
+        (
+            "controller.loop.damping_rule=magic",
+            "controller.loop.damping_rule: unknown value 'magic'",
+        ),
     ],
 )
 def test_bad_override_is_one_line_and_nonzero(tmp_path: Path, override: str, expected: str) -> None:

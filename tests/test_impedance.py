@@ -5,11 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.control.impedance import (
-    FixedImpedance,
-    damping_from_rule,
-    impedance_term,
-)
+from ccm.control.impedance import FixedImpedance
+from ccm.control.loop import damping_from_rule, impedance_term
 from ccm.control.registry import make_controller
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
@@ -39,8 +36,9 @@ def target(pos=(0.0, 0.0), vel=(0.0, 0.0), acc=(0.0, 0.0), fdir=None, fmag=0.0) 
     )
 
 
-def make(**kw) -> FixedImpedance:
-    c = FixedImpedance(**kw)
+def make(stiffness: float | list[float] = 300.0, **loop) -> FixedImpedance:
+    """A reset controller; keyword arguments other than the stiffness go to its loop block."""
+    c = FixedImpedance(stiffness=stiffness, loop=loop)
     c.reset(2, 0.001)
     return c
 
@@ -87,9 +85,9 @@ def test_force_feedback_sign() -> None:
     [
         ({"stiffness": -1.0}, "controller.stiffness"),
         ({"stiffness": float("nan")}, "controller.stiffness"),
-        ({"damping_rule": "magic"}, "controller.damping_rule"),
-        ({"force_kp": -0.1}, "controller.force_kp"),
-        ({"mass_kg": 0.0}, "controller.mass_kg"),
+        ({"loop": {"damping_rule": "magic"}}, "controller.loop.damping_rule"),
+        ({"loop": {"force_kp": -0.1}}, "controller.loop.force_kp"),
+        ({"loop": {"mass_kg": 0.0}}, "controller.loop.mass_kg"),
     ],
 )
 def test_bad_gains_name_the_key(kwargs: dict, key: str) -> None:
@@ -104,6 +102,15 @@ def test_registry_rejects_unknown_type_and_key() -> None:
         make_controller({"type": "nope"})
     with pytest.raises(ConfigError, match="controller.stifness"):
         make_controller({"type": "fixed_impedance", "stifness": 10.0})
+
+
+def test_loop_keys_belong_in_the_loop_block() -> None:
+    """A force-loop gain at the controller's top level, or a gain in the loop block that the
+    loop does not have, is refused with the key it was given under."""
+    with pytest.raises(ConfigError, match=r"^controller.force_kp: unknown key"):
+        make_controller({"type": "fixed_impedance", "force_kp": 0.5})
+    with pytest.raises(ConfigError, match=r"^controller.loop.stiffness: unknown key"):
+        make_controller({"type": "fixed_impedance", "loop": {"stiffness": 1.0}})
 
 
 def test_stiffness_dimension_checked_at_reset() -> None:

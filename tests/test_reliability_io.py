@@ -135,8 +135,8 @@ BOOL_FIELDS = _bool_fields()
 
 def test_the_boolean_catalogue_covers_the_known_fields() -> None:
     ids = {p.id for p in BOOL_FIELDS}
-    assert {"experiment.fast", "experiment.figures", "controller.adaptive",
-            "controller.inertia_feedforward", "sim.gui", "task.scene.ee.rotate"} <= ids  # fmt: skip
+    assert {"experiment.fast", "experiment.figures", "controller.adaptive", "sim.gui",
+            "controller.loop.inertia_feedforward", "task.scene.ee.rotate"} <= ids  # fmt: skip
 
 
 @pytest.mark.parametrize(("overrides", "key"), BOOL_FIELDS)

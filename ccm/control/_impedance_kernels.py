@@ -1,6 +1,6 @@
-"""Numba kernel behind :func:`ccm.control.impedance.impedance_term` (every Eq. 1 controller).
+"""Numba kernel behind :func:`ccm.control.loop.impedance_term` (every Eq. 1 controller).
 
-The readable definition, with the equation, is :func:`ccm.control.impedance.impedance_term`;
+The readable definition, with the equation, is :func:`ccm.control.loop.impedance_term`;
 the kernel repeats its arithmetic in the same order (no fast-math, so no reassociation or
 fused multiply-adds), so the two agree bit for bit (``tests/test_impedance.py``). It
 replaces five numpy temporaries (~0.5 µs each) by one compiled call.

@@ -46,7 +46,6 @@ from typing import Any
 
 import numpy as np
 
-from ccm.control.adaptive.avic import _OWN_KEYS as _AVIC_KEYS
 from ccm.control.adaptive.contact_events import ContactEvents, TransitionWindow
 from ccm.control.adaptive.contact_regions import (
     approach_passes,
@@ -56,13 +55,11 @@ from ccm.control.adaptive.contact_regions import (
 )
 from ccm.control.adaptive.modal import ModalAVIC
 from ccm.control.adaptive.transition import KINDS, check_kinds, transition_force
-from ccm.control.impedance import FixedImpedance
 from ccm.core.errors import (
     ConfigError,
     check_keys,
     check_nonneg,
     check_positive,
-    constructor_kwargs,
 )
 from ccm.core.types import Command, Observation, TargetSample
 from ccm.learn.contact.collisions import CollisionDetector
@@ -145,16 +142,7 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         )
         self.contact_map: ContactMap | None = None  # built at the first prepare(), then kept
 
-    @classmethod
-    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> AnticipatoryAVIC:
-        """Split a ``controller`` config into its blocks, AVIC's keys and the impedance keys."""
-        own = {k: v for k, v in cfg.items() if k in _AVIC_KEYS}
-        rest = {k: v for k, v in cfg.items() if k not in (*_AVIC_KEYS, "modes", "anticipation")}
-        imp = constructor_kwargs(FixedImpedance, rest, key)
-        return cls(
-            anticipation=cfg.get("anticipation"), modes=cfg.get("modes"), **own,
-            impedance=imp, key=key,
-        )  # fmt: skip
+    BLOCKS = ("modes", "anticipation")
 
     def reset(self, dim: int, control_dt: float) -> None:
         super().reset(dim, control_dt)
@@ -368,19 +356,18 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             force = (1.0 - alpha) * cmd.force
             ff = self.last_feedforward  # Eq. 8's u_ff, for the kinds configured to keep it
             ff_c, ff_i = (ff if k in self.transition_ff else None for k in KINDS)
-            d, loop = target.force_dir, self.last_force_loop
+            hyb = self.loop
+            d, u_fc = target.force_dir, hyb.last_force_loop
+            m, m_ff = hyb.mass_kg, hyb.inertia_feedforward
             if a_c > 0.0:  # Eq. 1's force loop kept across the motion only
                 keep = d is not None and not self._force_along_motion(d, target)
-                gains = (self.k_collision, self.damping_for(self.k_collision))
+                gains = (self.k_collision, hyb.damping_for(self.k_collision))
                 force += a_c * transition_force(
-                    obs, target, gains, self.mass_kg, self.inertia_feedforward,
-                    loop if keep else None, ff_c,
-                )  # fmt: skip
-            if a_i > 0.0:
-                gains = (self.k_max, self.damping_for(self.k_max))
-                force += a_i * transition_force(
-                    obs, target, gains, self.mass_kg, self.inertia_feedforward, loop, ff_i
+                    obs, target, gains, m, m_ff, u_fc if keep else None, ff_c
                 )
+            if a_i > 0.0:
+                gains = (self.k_max, hyb.damping_for(self.k_max))
+                force += a_i * transition_force(obs, target, gains, m, m_ff, u_fc, ff_i)
             cmd = Command(force=force, torque=cmd.torque)
             self._signals["stiffness_Npm"] = (
                 (1.0 - alpha) * k1 + a_c * self.k_collision + a_i * self.k_max

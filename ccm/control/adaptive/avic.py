@@ -50,12 +50,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
-from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
-from ccm.control.impedance import FixedImpedance
+from ccm.control.base import STATE_ERRORS, Controller, check_state_keys, state_error
+from ccm.control.loop import HybridLoop
 from ccm.core.errors import (
     ConfigError,
     check_bool,
@@ -72,10 +72,6 @@ from ccm.learn.mixtures.forecast import ForecastBuffer, horizon_steps
 from ccm.learn.mixtures.forward_model import N_STATE, magnitudes, make_forward_model
 
 FF_DIRECTIONS = ("against_motion", "measured", "along_motion")
-_OWN_KEYS = (
-    "k_free", "k_max", "r", "eps0", "calibrate", "error_lowpass_s", "adaptive", "feedforward",
-    "ff_direction", "min_speed", "forward_model",
-)  # fmt: skip
 _CALIBRATE_KEYS = ("trials", "quantile", "shape")
 
 
@@ -98,7 +94,7 @@ def check_calibrate(cfg: Mapping[str, Any] | None, key: str) -> dict[str, float]
     }
 
 
-class AVIC(FixedImpedance):
+class AVIC(Controller):
     """AVIC of seed A Eq. 4a–4c on top of the hybrid impedance law of Eq. 1.
 
     Args:
@@ -118,8 +114,8 @@ class AVIC(FixedImpedance):
         min_speed: measured speed below which ``against_motion`` and ``along_motion`` have no
             direction [m/s].
         forward_model: ``{kind: igmm | fixed_gmm, ...}`` (:mod:`ccm.learn.mixtures.forward_model`).
-        impedance: the remaining :class:`FixedImpedance` parameters (damping rule, force
-            loop, …); its ``stiffness`` is not used.
+        loop: the ``controller.loop`` block (:class:`ccm.control.loop.HybridLoop`: damping
+            rule, force loop, inertial feed-forward, orientation hold).
     """
 
     def __init__(
@@ -135,12 +131,12 @@ class AVIC(FixedImpedance):
         ff_direction: str = "measured",
         min_speed: float = 0.005,
         forward_model: Mapping[str, Any] | None = None,
-        impedance: Mapping[str, Any] | None = None,
+        loop: Mapping[str, Any] | None = None,
         key: str = "controller",
     ) -> None:
-        imp = dict(impedance or {})
-        imp.pop("stiffness", None)
-        super().__init__(stiffness=k_max, **imp, key=key)
+        self.loop = HybridLoop.from_config(loop, f"{key}.loop")
+        self.dim = 0
+        self.control_dt = 0.0
         self.k_free = check_positive(f"{key}.k_free", k_free)
         self.k_max = check_positive(f"{key}.k_max", k_max)
         if self.k_max < self.k_free:
@@ -166,16 +162,19 @@ class AVIC(FixedImpedance):
         self.min_speed = check_nonneg(f"{key}.min_speed", min_speed)
         self.model = make_forward_model(dict(forward_model or {}), f"{key}.forward_model")
 
+    #: config blocks a subclass adds to AVIC's arguments (``modes``, ``anticipation``)
+    BLOCKS: tuple[str, ...] = ()
+
     @classmethod
-    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> AVIC:
-        """Split a ``controller`` config into AVIC's own keys and the impedance keys."""
-        own = {k: v for k, v in cfg.items() if k in _OWN_KEYS}
-        rest = {k: v for k, v in cfg.items() if k not in _OWN_KEYS}
-        imp = constructor_kwargs(FixedImpedance, rest, key)
-        return cls(**own, impedance=imp, key=key)
+    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> Self:
+        """AVIC's arguments (unknown keys rejected) plus the subclass's :attr:`BLOCKS`."""
+        own = {k: v for k, v in cfg.items() if k not in cls.BLOCKS}
+        blocks = {b: cfg.get(b) for b in cls.BLOCKS}
+        return cls(**blocks, **constructor_kwargs(AVIC, own, key), key=key)
 
     def reset(self, dim: int, control_dt: float) -> None:
         super().reset(dim, control_dt)
+        self.loop.reset(dim, control_dt)
         self._lam = 0.0  # start stiff (K_max) until the model has proven itself
         h = horizon_steps(self.model.horizon_s, control_dt, f"{self.key}.forward_model.horizon_s")
         self.forecast = ForecastBuffer(h)
@@ -194,7 +193,12 @@ class AVIC(FixedImpedance):
             and hasattr(self.model, "update_predict")
         )
         self.last_feedforward = np.zeros(dim)  # λ Ŵ subtracted by the last step (Eq. 4a)
-        self._signals.update(self._avic_signals(math.nan, math.nan, math.nan, math.nan))
+        self._signals = {  # the loop's keys after the gains, as FixedImpedance logs them
+            "stiffness_Npm": math.nan,
+            "damping_Nspm": self.loop.damping_for(self.k_max),
+            **self.loop.signals(),
+            **self._avic_signals(math.nan, math.nan, math.nan, math.nan),
+        }
 
     @property
     def calibrating(self) -> bool:
@@ -223,15 +227,6 @@ class AVIC(FixedImpedance):
         ez = math.exp(z)
         return ez / (1.0 + ez)
 
-    def damping_for(self, kp: float) -> float:
-        """K_d for a scalar K_p under the configured rule (scalar fast path of
-        :func:`damping_from_rule`)."""
-        if self.damping_rule == "critical":
-            return 2.0 * self.damping_ratio * math.sqrt(kp * self.mass_kg)
-        if self.damping_rule == "paper":
-            return math.sqrt(kp) / 4.0
-        return self.fixed_damping
-
     def stiffness_for(self, lam: float) -> float:
         """K_p of Eq. 4b."""
         return self.k_free + (1.0 - lam) * (self.k_max - self.k_free)
@@ -256,8 +251,9 @@ class AVIC(FixedImpedance):
         stiff = not self.adaptive or calibrating or self.hold_k_max()
         lam = 0.0 if stiff else self._lam
         kp = self.k_max if stiff else self.stiffness_for(lam)
-        kd = self.damping_for(kp)
-        u_motion, u_force = self.motion_force(obs, target, kp, kd)
+        loop = self.loop
+        kd = loop.damping_for(kp)
+        u_motion, u_force = loop.motion_force(obs, target, kp, kd)
         model = self.model
         if fused:
             self.forecast.push(s, model.update_predict(s_past, d, s))
@@ -265,9 +261,9 @@ class AVIC(FixedImpedance):
             self.forecast.push(s, model.predict(s) if model.ready else None)
         pred_next = self.forecast.next_prediction()  # D̂_{t+1}, for the command until t+1
         u = u_motion  # a fresh array; the force loop (if any) is added in place
-        if u_force is not self._zero:
+        if u_force is not loop.zero:
             u += u_force
-        self.last_feedforward = self._zero  # λ Ŵ of Eq. 4a as applied (Eq. 8 reuses it)
+        self.last_feedforward = loop.zero  # λ Ŵ of Eq. 4a as applied (Eq. 8 reuses it)
         if self.feedforward and pred_next is not None and lam > 0.0:
             w = self.predicted_wrench(float(pred_next[0]), obs)
             if target.force_dir is not None:
@@ -280,7 +276,11 @@ class AVIC(FixedImpedance):
         sig["stiffness_Npm"], sig["damping_Nspm"] = kp, kd
         sig["n_components"] = float(getattr(model, "n_components", 0))
         sig["calibrating"] = 1.0 if calibrating else 0.0
-        return Command(force=u, torque=self.rotation_torque(obs, target))
+        sig["force_error_N"], sig["force_control"] = loop.force_error_N, loop.force_control
+        return Command(force=u, torque=loop.rotation_torque(obs, target))
+
+    def signals(self) -> dict[str, float]:
+        return dict(self._signals)
 
     def _observe_error(self, err: float) -> None:
         """λ_t of Eq. 4c from ε̄_t (ε_t low-passed), or keep ε̄_t to calibrate ε₀ and r."""

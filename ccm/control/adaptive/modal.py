@@ -34,10 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from ccm.control.adaptive.avic import _OWN_KEYS as _AVIC_KEYS
 from ccm.control.adaptive.avic import AVIC
 from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
-from ccm.control.impedance import FixedImpedance
 from ccm.core.errors import (
     ConfigError,
     check_choice,
@@ -46,7 +44,6 @@ from ccm.core.errors import (
     check_keys,
     check_nonneg,
     check_positive,
-    constructor_kwargs,
 )
 from ccm.core.filters import first_order_alpha
 from ccm.core.types import Observation, TargetSample
@@ -139,13 +136,7 @@ class ModalAVIC(AVIC):
         self.models: dict[int, Any] = {FREE: self.model}
         self.samples: dict[int, int] = {FREE: 0}
 
-    @classmethod
-    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> ModalAVIC:
-        """Split a ``controller`` config into ``modes``, AVIC's keys and the impedance keys."""
-        own = {k: v for k, v in cfg.items() if k in _AVIC_KEYS}
-        rest = {k: v for k, v in cfg.items() if k not in (*_AVIC_KEYS, "modes")}
-        imp = constructor_kwargs(FixedImpedance, rest, key)
-        return cls(modes=cfg.get("modes"), **own, impedance=imp, key=key)
+    BLOCKS = ("modes",)
 
     def make_trigger(self) -> TransitionTrigger:
         """A fresh :class:`TransitionTrigger` from the configured settings."""

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.control.impedance import impedance_term
+from ccm.control.loop import impedance_term
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
 
@@ -71,7 +71,7 @@ def transition_force(
     Args:
         obs, target: this step's observation and target.
         gains: K* [N/m] and D* [N s/m].
-        mass_kg, inertia_feedforward: as :func:`ccm.control.impedance.impedance_term`.
+        mass_kg, inertia_feedforward: as :func:`ccm.control.loop.impedance_term`.
         force_loop: the base's force-loop force u_fc this step, replacing the impedance
             along the commanded force direction; None keeps the impedance there.
         feedforward: the base's λ Ŵ this step, subtracted as in Eq. 4a (u_ff); None: none.

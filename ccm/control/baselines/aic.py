@@ -11,11 +11,13 @@ as the attractor of the generative model; there is no explicit stiffness.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
 from ccm.control.base import Controller
-from ccm.control.impedance import hybrid_loop
+from ccm.control.loop import HybridLoop
 from ccm.core.errors import check_positive
 from ccm.core.types import Command, Observation, TargetSample
 
@@ -55,8 +57,8 @@ class AIC(Controller):
     it is a constant, not a stiffness to the target (μ lags between y and μ_d).
 
     On force-controlled segments (target ``force_dir`` d) the action acts on the motion
-    subspace I − d dᵀ only and the force loop of :class:`FixedImpedance` (seed A Eq. 1, u_fc)
-    acts along d (reused through :meth:`FixedImpedance.motion_force` with zero gains).
+    subspace I − d dᵀ only and the force loop of :class:`HybridLoop` (seed A Eq. 1, u_fc)
+    acts along d (reused through :meth:`HybridLoop.motion_force` with zero gains).
 
     Defaults are the tuned values of ``configs/controller/aic.yaml``
     (``experiments/tuning/aic.md``).
@@ -69,9 +71,9 @@ class AIC(Controller):
         sigma_mu: model variance of the first-order dynamics σ_μ; > 0.
         sigma_mup: model variance of the second-order dynamics σ_μ'; > 0.
         attractor_rate: λ [1/s] of the attractor f(μ) = λ(μ_d − μ); > 0.
-        mass_kg, inertia_feedforward, rot_stiffness, rot_damping, force_kp, force_ki,
-        force_damping, force_integral_limit_N: as in :class:`FixedImpedance`
-        (inertia_feedforward is off by default: the AIC law has no model term).
+        loop: the ``controller.loop`` block (:class:`ccm.control.loop.HybridLoop`: damping
+            rule, force loop, inertial feed-forward, orientation hold; the feed-forward
+            is off unless the block turns it on).
     """
 
     def __init__(
@@ -83,14 +85,7 @@ class AIC(Controller):
         sigma_mu: float = 1.0,
         sigma_mup: float = 1.0,
         attractor_rate: float = 1.0,
-        mass_kg: float = 1.0,
-        inertia_feedforward: bool = False,
-        rot_stiffness: float = 5.0,
-        rot_damping: float = 0.5,
-        force_kp: float = 0.5,
-        force_ki: float = 5.0,
-        force_damping: float = 50.0,
-        force_integral_limit_N: float = 5.0,
+        loop: Mapping[str, Any] | None = None,
         key: str = "controller",
     ) -> None:
         self.k_mu = check_positive(f"{key}.k_mu", k_mu)
@@ -100,9 +95,9 @@ class AIC(Controller):
         self.p_mu = 1.0 / check_positive(f"{key}.sigma_mu", sigma_mu)
         self.p_mup = 1.0 / check_positive(f"{key}.sigma_mup", sigma_mup)
         self.lam = check_positive(f"{key}.attractor_rate", attractor_rate)
-        # Only the force loop, inertial feed-forward and orientation parts of FixedImpedance
-        # are used; its own stiffness/damping are never applied (zero gains are passed).
-        self.hybrid = hybrid_loop(key, locals())
+        # K, D are passed per call; inertia_feedforward is off unless the block turns it on
+        loop = {"inertia_feedforward": False, **(loop or {})}
+        self.loop = HybridLoop.from_config(loop, f"{key}.loop")
         self._key = key
         self.dim = 0
         self.control_dt = 0.0
@@ -116,7 +111,7 @@ class AIC(Controller):
     def reset(self, dim: int, control_dt: float) -> None:
         """Start a trial: beliefs re-initialised at the first observation, action at 0."""
         super().reset(dim, control_dt)
-        self.hybrid.reset(dim, control_dt)
+        self.loop.reset(dim, control_dt)
         self.mu = np.zeros(dim)
         self.mu_p = np.zeros(dim)
         self.mu_pp = np.zeros(dim)
@@ -141,7 +136,7 @@ class AIC(Controller):
             self.mu_pp = np.zeros(self.dim)
             self._started = True
         d = target.force_dir
-        u_motion, u_force = self.hybrid.motion_force(obs, target, self._zero, self._zero)
+        u_motion, u_force = self.loop.motion_force(obs, target, self._zero, self._zero)
         u = self.u if d is None else self.u - d * float(d @ self.u)
         force = u_motion + u + u_force
 
@@ -157,7 +152,7 @@ class AIC(Controller):
         s["belief_error_m"] = float(np.linalg.norm(e_y))
         s["belief_lag_m"] = float(np.linalg.norm(target.position - self.mu))
         s["action_N"] = float(np.linalg.norm(u))
-        hyb = self.hybrid.signals()
+        hyb = self.loop.signals()
         s["force_error_N"] = hyb["force_error_N"]
         s["force_control"] = hyb["force_control"]
 
@@ -169,10 +164,10 @@ class AIC(Controller):
         self.mu_p = mu_p_old + dt * (self.mu_pp - self.k_mu * g_mup)
         self.mu_pp = self.mu_pp - dt * self.k_mu * g_mupp
         self.u = self.u + dt * du
-        return Command(force=force, torque=self.hybrid.rotation_torque(obs, target))
+        return Command(force=force, torque=self.loop.rotation_torque(obs, target))
 
     def signals(self) -> dict[str, float]:
         """``stiffness_Npm`` k_a/σ_y' (see class docstring), ``damping_Nspm`` NaN (none),
         ``belief_error_m`` |y − μ|, ``belief_lag_m`` |μ_d − μ|, ``action_N`` |u|, plus the
-        force-loop signals of :class:`FixedImpedance`."""
+        force-loop signals of :class:`HybridLoop`."""
         return dict(self._signals)

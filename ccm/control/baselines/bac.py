@@ -16,10 +16,9 @@ from typing import Any
 import numpy as np
 
 from ccm.control.base import STATE_ERRORS, Controller, check_state_keys, state_error
-from ccm.control.impedance import DAMPING_RULES, damping_from_rule, hybrid_loop
+from ccm.control.loop import HybridLoop
 from ccm.core.errors import (
     ConfigError,
-    check_choice,
     check_finite,
     check_int_nonneg,
     check_nonneg,
@@ -34,7 +33,7 @@ class BAC(Controller):
     Per task-space axis (all products elementwise), at control step k of a trial, with
     e_p = x_d − x and e_v = ẋ_d − ẋ (target minus actual):
 
-    * Control law (seed A Eq. 1 form, through :meth:`FixedImpedance.motion_force`):
+    * Control law (seed A Eq. 1 form, through :meth:`HybridLoop.motion_force`):
 
         u(k) = F(k) + K(k) e_p(k) + D(k) e_v(k) + m ẍ_d(k)
 
@@ -60,7 +59,7 @@ class BAC(Controller):
     learn there; shorter trials update only the indices they reached.
 
     On force-controlled segments (target ``force_dir`` d) errors are projected on the motion
-    subspace I − d dᵀ and the force loop of :class:`FixedImpedance` (seed A Eq. 1, u_fc)
+    subspace I − d dᵀ and the force loop of :class:`HybridLoop` (seed A Eq. 1, u_fc)
     acts along d.
 
     Defaults are the tuned values of ``configs/controller/bac.yaml``
@@ -75,9 +74,8 @@ class BAC(Controller):
         q_force: Q_F [N s/m per trial]; >= 0.
         q_stiffness: Q_K [N s/m³ per trial]; >= 0.
         k_min, k_max: stiffness bounds [N/m]; 0 <= k_min <= k_max.
-        damping_rule, damping_ratio, damping, mass_kg, inertia_feedforward, rot_stiffness,
-        rot_damping, force_kp, force_ki, force_damping, force_integral_limit_N: as in
-        :class:`FixedImpedance`.
+        loop: the ``controller.loop`` block (:class:`ccm.control.loop.HybridLoop`: damping
+            rule, force loop, inertial feed-forward, orientation hold).
     """
 
     def __init__(
@@ -91,17 +89,7 @@ class BAC(Controller):
         q_stiffness: float = 1.0e6,
         k_min: float = 50.0,
         k_max: float = 3000.0,
-        damping_rule: str = "critical",
-        damping_ratio: float = 1.0,
-        damping: float = 30.0,
-        mass_kg: float = 1.0,
-        inertia_feedforward: bool = True,
-        rot_stiffness: float = 5.0,
-        rot_damping: float = 0.5,
-        force_kp: float = 0.5,
-        force_ki: float = 5.0,
-        force_damping: float = 50.0,
-        force_integral_limit_N: float = 5.0,
+        loop: Mapping[str, Any] | None = None,
         key: str = "controller",
     ) -> None:
         self.k_min = check_nonneg(f"{key}.k_min", k_min)
@@ -130,13 +118,7 @@ class BAC(Controller):
         ):
             if q * g > 1.0:  # the update would flip the sign of F or K every trial
                 raise ConfigError(f"{key}.{name}", f"Q * gamma = {q * g:g} must be <= 1")
-        self.damping_rule = check_choice(f"{key}.damping_rule", damping_rule, DAMPING_RULES)
-        self.damping_ratio = check_positive(f"{key}.damping_ratio", damping_ratio)
-        self.fixed_damping = check_nonneg(f"{key}.damping", damping)
-        # Only the force loop, inertial feed-forward and orientation parts of FixedImpedance
-        # are used; K(k) and D(k) are passed per call.
-        self.hybrid = hybrid_loop(key, locals())
-        self.mass_kg = self.hybrid.mass_kg
+        self.loop = HybridLoop.from_config(loop, f"{key}.loop")  # K, D passed per call
         self._key = key
         self.dim = 0
         self.control_dt = 0.0
@@ -157,7 +139,7 @@ class BAC(Controller):
             raise ConfigError(
                 f"{self._key}", f"learned for {self.force_profile.shape[1]}-D, reset for {dim}-D"
             )
-        self.hybrid.reset(dim, control_dt)
+        self.loop.reset(dim, control_dt)
         self._k0 = np.broadcast_to(self.init_stiffness, (dim,)).astype(float)
         self._f0 = np.broadcast_to(self.init_force, (dim,)).astype(float)
         self._step = 0
@@ -172,12 +154,7 @@ class BAC(Controller):
         }
 
     def _damping(self, k: np.ndarray) -> np.ndarray:
-        return np.asarray(
-            damping_from_rule(
-                k, self.damping_rule, self.mass_kg, self.damping_ratio, self.fixed_damping
-            ),
-            dtype=float,
-        )
+        return np.asarray(self.loop.damping_for(k), dtype=float)
 
     @property
     def horizon_steps(self) -> int | None:
@@ -192,7 +169,7 @@ class BAC(Controller):
             idx = min(self._step, self.force_profile.shape[0] - 1)
             f, k = self.force_profile[idx], self.stiffness_profile[idx]
         kd = self._damping(k)
-        u_motion, u_force = self.hybrid.motion_force(obs, target, k, kd)
+        u_motion, u_force = self.loop.motion_force(obs, target, k, kd)
         d = target.force_dir
         e_p = target.position - obs.position
         e_v = target.velocity - obs.lin_vel
@@ -207,12 +184,10 @@ class BAC(Controller):
         s["stiffness_Npm"] = float(np.mean(k))
         s["damping_Nspm"] = float(np.mean(kd))
         s["ff_force_N"] = float(np.linalg.norm(f))
-        hyb = self.hybrid.signals()
+        hyb = self.loop.signals()
         s["force_error_N"] = hyb["force_error_N"]
         s["force_control"] = hyb["force_control"]
-        return Command(
-            force=u_motion + f + u_force, torque=self.hybrid.rotation_torque(obs, target)
-        )
+        return Command(force=u_motion + f + u_force, torque=self.loop.rotation_torque(obs, target))
 
     def end_trial(self) -> None:
         """Yang et al.'s trial-to-trial update of F(k) and K(k) from this trial's errors."""
@@ -275,5 +250,5 @@ class BAC(Controller):
 
     def signals(self) -> dict[str, float]:
         """``stiffness_Npm`` mean K(k), ``damping_Nspm`` mean D(k), ``ff_force_N`` |F(k)|, plus
-        the force-loop signals of :class:`FixedImpedance`."""
+        the force-loop signals of :class:`HybridLoop`."""
         return dict(self._signals)

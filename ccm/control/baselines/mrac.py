@@ -10,12 +10,13 @@ end-effector follow the reference model.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from ccm.control.base import Controller
-from ccm.control.impedance import hybrid_loop
+from ccm.control.loop import HybridLoop
 from ccm.core.errors import ConfigError, check_finite, check_nonneg, check_positive
 from ccm.core.types import Command, Observation, TargetSample
 
@@ -87,8 +88,8 @@ class MRAC(Controller):
     ``adaptive_kp_Npm``/``adaptive_kv_Nspm`` report K_p(t), K_v(t) themselves.
 
     On force-controlled segments (target ``force_dir`` d) the errors are projected on the
-    motion subspace I − d dᵀ and the force loop of :class:`FixedImpedance` (seed A Eq. 1,
-    u_fc) acts along d; it is reused through :meth:`FixedImpedance.motion_force`, to which the
+    motion subspace I − d dᵀ and the force loop of :class:`HybridLoop` (seed A Eq. 1,
+    u_fc) acts along d; it is reused through :meth:`HybridLoop.motion_force`, to which the
     reference-model state is passed as the "target" and K_p(t), K_v(t) as the gains.
 
     Defaults are the tuned values of ``configs/controller/mrac.yaml``
@@ -103,8 +104,9 @@ class MRAC(Controller):
         alpha1, alpha2: integral [N/(m s)] and proportional [N/m] adaptation gains of f.
         beta1, beta2: adaptation gains of K_p [N/(m³ s)], [N/m³].
         gamma1, gamma2: adaptation gains of K_v [N s/m³], [N s²/m³].
-        mass_kg, inertia_feedforward, rot_stiffness, rot_damping, force_kp, force_ki,
-        force_damping, force_integral_limit_N: as in :class:`FixedImpedance`.
+        loop: the ``controller.loop`` block (:class:`ccm.control.loop.HybridLoop`: damping
+            rule, force loop, inertial feed-forward, orientation hold; the feed-forward
+            is off unless the block turns it on).
     """
 
     def __init__(
@@ -122,14 +124,7 @@ class MRAC(Controller):
         beta2: float = 1.0e4,
         gamma1: float = 1.0e5,
         gamma2: float = 1.0e3,
-        mass_kg: float = 1.0,
-        inertia_feedforward: bool = False,
-        rot_stiffness: float = 5.0,
-        rot_damping: float = 0.5,
-        force_kp: float = 0.5,
-        force_ki: float = 5.0,
-        force_damping: float = 50.0,
-        force_integral_limit_N: float = 5.0,
+        loop: Mapping[str, Any] | None = None,
         key: str = "controller",
     ) -> None:
         self.omega = _per_axis(f"{key}.omega", omega, check_positive)
@@ -144,9 +139,9 @@ class MRAC(Controller):
         self.alpha = (check_nonneg(f"{key}.alpha1", alpha1), check_nonneg(f"{key}.alpha2", alpha2))
         self.beta = (check_nonneg(f"{key}.beta1", beta1), check_nonneg(f"{key}.beta2", beta2))
         self.gamma = (check_nonneg(f"{key}.gamma1", gamma1), check_nonneg(f"{key}.gamma2", gamma2))
-        # Only the force loop, inertial feed-forward and orientation parts of FixedImpedance
-        # are used; its own stiffness/damping are never applied (gains are passed per call).
-        self.hybrid = hybrid_loop(key, locals())
+        # K, D are passed per call; inertia_feedforward is off unless the block turns it on
+        loop = {"inertia_feedforward": False, **(loop or {})}
+        self.loop = HybridLoop.from_config(loop, f"{key}.loop")
         self._key = key
         self.dim = 0
         self.control_dt = 0.0
@@ -158,7 +153,7 @@ class MRAC(Controller):
         for name, arr in (("omega", self.omega), ("zeta", self.zeta)):
             if arr.size not in (1, dim):
                 raise ConfigError(f"{self._key}.{name}", f"needs 1 or {dim} values, got {arr.size}")
-        self.hybrid.reset(dim, control_dt)
+        self.loop.reset(dim, control_dt)
         omega = np.broadcast_to(self.omega, (dim,))
         zeta = np.broadcast_to(self.zeta, (dim,))
         self._omega2 = omega**2
@@ -224,10 +219,10 @@ class MRAC(Controller):
             segment=target.segment,
             done=target.done,
         )
-        u_motion, u_force = self.hybrid.motion_force(obs, ref, self.kp, self.kv)
+        u_motion, u_force = self.loop.motion_force(obs, ref, self.kp, self.kv)
         f = self.f if d is None else self.f - d * float(d @ self.f)
         force = u_motion + f + u_force
-        hyb = self.hybrid.signals()
+        hyb = self.loop.signals()
         s = self._signals
         s["stiffness_Npm"] = float(np.mean(self.kp)) + self._kp_hidden
         s["damping_Nspm"] = float(np.mean(self.kv)) + self._kv_hidden
@@ -243,11 +238,11 @@ class MRAC(Controller):
         x_next = g00 * self.x_m + g01 * self.v_m + g02 * r
         self.v_m = g10 * self.x_m + g11 * self.v_m + g12 * r
         self.x_m = x_next
-        return Command(force=force, torque=self.hybrid.rotation_torque(obs, target))
+        return Command(force=force, torque=self.loop.rotation_torque(obs, target))
 
     def signals(self) -> dict[str, float]:
         """``stiffness_Npm``/``damping_Nspm`` effective gains (class docstring), ``adaptive_kp_Npm``
         mean K_p, ``adaptive_kv_Nspm`` mean K_v, ``adaptive_force_N`` |f|,
         ``ref_error_m`` |x_m − x| (model following), ``ref_lag_m`` |r − x_m| (model vs target),
-        plus the force-loop signals of :class:`FixedImpedance`."""
+        plus the force-loop signals of :class:`HybridLoop`."""
         return dict(self._signals)
