@@ -164,9 +164,9 @@ def test_calibration_sets_eps0_and_r_from_the_first_trial() -> None:
     c.reset(2, 0.001)
     c.step(obs(force=(-2.0, 0.0)), target())
     assert c.signals()["calibrating"] == 0.0
-    state = c.learned_state()
+    state = c.state_dict()
     d = make(calibrate=cal, r=None, eps0=None, forward_model={"kind": "igmm"})
-    d.load_learned_state(state)
+    d.load_state_dict(state)
     assert (d.eps0, d.r) == (c.eps0, c.r)
 
 

@@ -151,7 +151,7 @@ def test_bac_end_trial_applies_the_update_law_per_time_index() -> None:
     k = np.clip(300.0 + 1e4 * (eps * e_p - 1e-6 * 300.0), c.k_min, c.k_max)
     np.testing.assert_allclose(c.stiffness_profile, k, rtol=1e-12)
     restored = BAC()  # learned state round-trips as plain arrays (NPZ/JSON-friendly)
-    restored.load_learned_state(c.learned_state())
+    restored.load_state_dict(c.state_dict())
     np.testing.assert_array_equal(restored.force_profile, c.force_profile)
     assert restored.horizon_steps == 3 and restored.trials_learned == 1
 

@@ -225,10 +225,10 @@ def test_one_measurement_per_contact_per_trial() -> None:
     m.observe([0.0, 0.0, 0.001], v_used=0.05, f_measured=4.0)
     m.observe([0.0, 0.0, 0.002], v_used=0.05, f_measured=9.0)
     assert approach.forces == [4.0]
-    before = m.to_dict()
+    before = m.state_dict()
     with pytest.raises(ConfigError):
         m.observe([0.5, 0.0, 0.0], v_used=0.05, f_measured=float("nan"))
-    assert m.to_dict() == before
+    assert m.state_dict() == before
     m2 = fixed_map(once_per_trial=False)
     m2.observe([0.505, 0.0, 0.0])
     assert m2.observe([0.506, 0.0, 0.0]).updated
@@ -358,12 +358,12 @@ def trained_map() -> ContactMap:
 
 def test_json_round_trip(tmp_path: Path) -> None:
     m = trained_map()
-    d = json.loads(json.dumps(m.to_dict()))
-    assert d == m.to_dict()
-    m2 = ContactMap.from_dict(d)
-    assert m2.to_dict() == m.to_dict()
+    d = json.loads(json.dumps(m.state_dict()))
+    assert d == m.state_dict()
+    m2 = ContactMap.from_state_dict(d)
+    assert m2.state_dict() == m.state_dict()
     m2 = ContactMap.load(m.save(tmp_path / "contacts.json"))
-    assert m2.to_dict() == m.to_dict() and not list(tmp_path.glob("*.tmp"))
+    assert m2.state_dict() == m.state_dict() and not list(tmp_path.glob("*.tmp"))
     assert m2.contacts[0].approach is not None and m.contacts[0].approach is not None
     assert m2.contacts[0].approach.next_velocity() == m.contacts[0].approach.next_velocity()
     z = [0.02, 0.01, 0.0]
@@ -407,7 +407,7 @@ BAD_STATES: list[tuple[Callable[[dict[str, Any]], object], str]] = [
 def test_invalid_states_raise_config_error(
     tmp_path: Path, mutate: Callable[[dict[str, Any]], object], message: str
 ) -> None:
-    bad = json.loads(json.dumps(trained_map().to_dict()))
+    bad = json.loads(json.dumps(trained_map().state_dict()))
     mutate(bad)
     path = tmp_path / "contacts.json"
     path.write_text(json.dumps(bad))

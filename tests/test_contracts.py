@@ -75,14 +75,14 @@ def test_controller_contract(composer, name: str) -> None:
     try:
         run_steps(comp, seed=1)
         comp.controller.end_trial()
-        state = comp.controller.learned_state()
+        state = comp.controller.state_dict()
         if state is None:
             return
         text = json.dumps(state, allow_nan=False)
         fresh = make_controller(to_plain(cfg.controller))
         fresh.reset(comp.task.dim, comp.sim.control_dt)
-        fresh.load_learned_state(json.loads(text))
-        assert json.dumps(fresh.learned_state(), allow_nan=False) == text
+        fresh.load_state_dict(json.loads(text))
+        assert json.dumps(fresh.state_dict(), allow_nan=False) == text
     finally:
         comp.sim.close()
 

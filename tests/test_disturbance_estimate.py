@@ -88,7 +88,7 @@ def test_controller_estimates_alpha_from_its_demonstrations_and_keeps_it_on_relo
     assert ctrl.disturbance_alpha == pytest.approx(0.2, rel=0.05)
     assert ctrl.report()["disturbance_alpha"] == ctrl.disturbance_alpha
     again = GPMPC(**kw)
-    again.load_learned_state(ctrl.learned_state())
+    again.load_state_dict(ctrl.state_dict())
     again.reset(2, DT)  # refits from the stored state
     assert again.disturbance_alpha == ctrl.disturbance_alpha
 

@@ -393,9 +393,9 @@ def test_merge_moment_matches_the_closest_pair():
     mu = np.array([[0.0, 0.0], [0.3, 0.1], [10.0, 0.0]])
     cov = np.array([np.eye(2), [[0.5, 0.1], [0.1, 0.7]], np.eye(2)])
     sp = np.array([4.0, 2.0, 3.0])
-    data = IGMM(2, sigma_init=1.0, max_components=3).to_dict()
+    data = IGMM(2, sigma_init=1.0, max_components=3).state_dict()
     data.update(means=mu.tolist(), covariances=cov.tolist(), support=sp.tolist(), ages=[9, 9, 9])
-    model = IGMM.from_dict(data)
+    model = IGMM.from_state_dict(data)
     x_new = np.array([0.0, 50.0])
     model.partial_fit(x_new)
     a, b = 4.0 / 6.0, 2.0 / 6.0
@@ -410,14 +410,14 @@ def test_merge_moment_matches_the_closest_pair():
 
 def test_prune_overflow_drops_least_support():
     mu = np.array([[0.0, 0.0], [3.0, 0.0], [10.0, 0.0]])
-    data = IGMM(2, sigma_init=1.0, max_components=3, overflow="prune").to_dict()
+    data = IGMM(2, sigma_init=1.0, max_components=3, overflow="prune").state_dict()
     data.update(
         means=mu.tolist(),
         covariances=[np.eye(2).tolist()] * 3,
         support=[4.0, 2.0, 3.0],
         ages=[9, 9, 9],
     )
-    model = IGMM.from_dict(data)
+    model = IGMM.from_state_dict(data)
     model.partial_fit([0.0, 50.0])
     np.testing.assert_allclose(model.means_, [[0.0, 0.0], [10.0, 0.0], [0.0, 50.0]])
     assert model.stats_["overflow_pruned"] == 1
@@ -487,11 +487,11 @@ def test_save_load_round_trip(tmp_path):
 
 def test_dict_round_trip_is_json_safe():
     model = fitted_model()
-    data = json.loads(json.dumps(model.to_dict()))
-    loaded = IGMM.from_dict(data)
+    data = json.loads(json.dumps(model.state_dict()))
+    loaded = IGMM.from_state_dict(data)
     _, S = porridge_stream(100, seed=24)
     np.testing.assert_array_equal(loaded.predict(S, IN6, OUT6), model.predict(S, IN6, OUT6))
-    empty = IGMM.from_dict(json.loads(json.dumps(IGMM(2, sigma_init=1.0).to_dict())))
+    empty = IGMM.from_state_dict(json.loads(json.dumps(IGMM(2, sigma_init=1.0).state_dict())))
     assert empty.n_components_ == 0
 
 
@@ -598,7 +598,7 @@ def test_bad_inputs_raise_value_error_and_leave_model_unchanged():
     with pytest.raises(ValueError, match="no components"):
         model.score_samples([0.0, 0.0, 0.0])
     model.partial_fit(np.zeros((5, 3)))
-    snapshot = model.to_dict()
+    snapshot = model.state_dict()
     for bad in (np.zeros(2), np.zeros((4, 2)), np.zeros((2, 2, 3)), "abc"):
         with pytest.raises(ValueError, match=r"^X: "):
             model.partial_fit(bad)
@@ -609,7 +609,7 @@ def test_bad_inputs_raise_value_error_and_leave_model_unchanged():
         model.fit([[0.0, np.nan, 0.0]])
     with pytest.raises(ValueError, match=r"^X: "):
         model.score_samples([np.nan, 0.0, 0.0])
-    assert model.to_dict() == snapshot
+    assert model.state_dict() == snapshot
     with pytest.raises(ValueError, match=r"^x_in: "):
         model.predict([0.0, 0.0, 0.0], [0, 1], [2])
     with pytest.raises(ValueError, match=r"^x_in: .*not finite"):

@@ -55,10 +55,10 @@ def feed(c: Controller, seed: int, segments: Sequence[tuple[float, int]]) -> lis
 
 def round_trip(c: Controller, fresh: Controller) -> dict[str, Any]:
     """Save ``c``'s state through JSON text (as the runner does) and load it into ``fresh``."""
-    state = c.learned_state()
+    state = c.state_dict()
     assert state is not None
-    fresh.load_learned_state(json.loads(json.dumps(state, allow_nan=False)))
-    assert fresh.learned_state() == state  # floats round-trip exactly through JSON
+    fresh.load_state_dict(json.loads(json.dumps(state, allow_nan=False)))
+    assert fresh.state_dict() == state  # floats round-trip exactly through JSON
     return state
 
 
@@ -92,7 +92,7 @@ def test_avic_forward_model_round_trip_and_resume(composer: Composer, overrides:
     fresh.reset(2, 0.001)
     later = [(0.45, 600), (0.3, 600)]  # the next trial runs the same either way
     np.testing.assert_array_equal(feed(fresh, 1, later), feed(c, 1, later))
-    assert fresh.learned_state() == c.learned_state()
+    assert fresh.state_dict() == c.state_dict()
     assert fresh.model.ready
 
 
@@ -112,7 +112,7 @@ def test_avic_modes_round_trip(composer: Composer) -> None:
     for mode, model in c.models.items():
         np.testing.assert_array_equal(fresh.models[mode].predict(s), model.predict(s))
     # the next trial makes the same decisions and commands (the BIRCH trees are rebuilt from
-    # their centres, so later centre updates may differ slightly: ModeClassifier.from_dict)
+    # their centres, so later centre updates may differ slightly: ModeClassifier.from_state_dict)
     c.reset(2, 0.001)
     fresh.reset(2, 0.001)
     later = [(0.6, 500), (0.3, 500)]
@@ -120,7 +120,7 @@ def test_avic_modes_round_trip(composer: Composer) -> None:
     assert fresh.samples == c.samples and fresh.classifier.n_modes == 2
     other = build(composer, "controller=avic_modes", "controller.modes.feature=torque_force_ratio")
     with pytest.raises(ConfigError, match="^init_from: .*1 features, .*torque_force_ratio has 2"):
-        other.load_learned_state(state)
+        other.load_state_dict(state)
 
 
 def test_anticipation_round_trip_keeps_the_contact_map(composer: Composer) -> None:
@@ -132,7 +132,7 @@ def test_anticipation_round_trip_keeps_the_contact_map(composer: Composer) -> No
         {"name": "patch", "position": [0.35, 0.027], "kind": "impactless"},
     ]
     c = build(composer, "controller=avic_anticipation")
-    assert c.learned_state()["contact_map"] is None  # no beliefs before the first trial
+    assert c.state_dict()["contact_map"] is None  # no beliefs before the first trial
     c.prepare(pattern, told, np.random.default_rng(0))
     c.contact_map.observe([0.0, 0.027], "collision", v_used=0.05, f_measured=12.0)
     c.contact_map.observe([0.36, 0.027], "impactless")
@@ -149,9 +149,9 @@ def test_anticipation_round_trip_keeps_the_contact_map(composer: Composer) -> No
     fresh.reset(2, 0.001)
     fresh.prepare(pattern, [], np.random.default_rng(5))  # prepare() keeps a loaded map
     assert fresh.contact_map is loaded
-    assert fresh.contact_map.to_dict() == c.contact_map.to_dict()
+    assert fresh.contact_map.state_dict() == c.contact_map.state_dict()
     with pytest.raises(ConfigError, match=r"^init_from: .*contact_map"):  # not a ModalAVIC's
-        build(composer, "controller=avic_modes").load_learned_state(state)
+        build(composer, "controller=avic_modes").load_state_dict(state)
 
 
 @pytest.mark.parametrize(
@@ -160,26 +160,26 @@ def test_anticipation_round_trip_keeps_the_contact_map(composer: Composer) -> No
 def test_learned_state_is_json_or_none(composer: Composer, name: str) -> None:
     """Every controller: None (does not learn) or JSON-safe data that loads back."""
     c = build(composer, f"controller={name}")
-    state = c.learned_state()
+    state = c.state_dict()
     if state is None:
         with pytest.raises(ConfigError, match="^init_from: .* has no learned state"):
-            c.load_learned_state({})
+            c.load_state_dict({})
         return
     text = json.dumps(state, allow_nan=False)
     fresh = build(composer, f"controller={name}")
-    fresh.load_learned_state(json.loads(text))
-    assert fresh.learned_state() == state
+    fresh.load_state_dict(json.loads(text))
+    assert fresh.state_dict() == state
     with pytest.raises(ConfigError, match="^init_from: invalid learned state"):
-        fresh.load_learned_state({**state, "bogus": 1})
+        fresh.load_state_dict({**state, "bogus": 1})
 
 
 def test_mismatched_forward_model_is_rejected(composer: Composer) -> None:
-    state = build(composer, "controller=avic").learned_state()
+    state = build(composer, "controller=avic").state_dict()
     other = build(composer, "controller=avic", "controller.forward_model.kind=fixed_gmm")
     with pytest.raises(
         ConfigError, match="^init_from: .*kind 'igmm', this config's is 'fixed_gmm'"
     ):
-        other.load_learned_state(state)
+        other.load_state_dict(state)
 
 
 # ----------------------------------------------------------------------------- runner

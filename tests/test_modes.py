@@ -152,17 +152,17 @@ def test_round_trip_gives_same_decisions() -> None:
     clf = make_classifier()
     for mu in (0.2, 0.6, 0.35, 0.2, 0.6):
         clf.classify(sliding_batch(rng, mu, 8.0, 1.0))
-    state = json.loads(json.dumps(clf.to_dict()))
-    restored = ModeClassifier.from_dict(state)
+    state = json.loads(json.dumps(clf.state_dict()))
+    restored = ModeClassifier.from_state_dict(state)
     assert restored.n_modes == clf.n_modes and restored.mode_counts_ == clf.mode_counts_
     for mu in (0.35, 0.9, 0.2, 0.6, 0.9):
         batch = sliding_batch(rng, mu, 12.0, -0.5)
         assert restored.classify(batch) == clf.classify(batch)
-    assert restored.to_dict()["modes"][3]["count"] == clf.to_dict()["modes"][3]["count"]
+    assert restored.state_dict()["modes"][3]["count"] == clf.state_dict()["modes"][3]["count"]
     bad = json.loads(json.dumps(state))
     bad["modes"][1]["id"] = 7
-    with pytest.raises(ConfigError, match=rf"^{KEY}\.from_dict\.modes\[1\]\.id"):
-        ModeClassifier.from_dict(bad)
+    with pytest.raises(ConfigError, match=rf"^{KEY}\.from_state_dict\.modes\[1\]\.id"):
+        ModeClassifier.from_state_dict(bad)
 
 
 def test_mixed_batch_is_new_mode_built_from_unclaimed_points() -> None:
@@ -187,9 +187,9 @@ def test_mixed_batch_is_new_mode_built_from_unclaimed_points() -> None:
     assert d.second_confidence == pytest.approx(5 / 30)
     assert d.second_confidence < d.confidence
     assert clf.mode_counts_ == {0: before[0] + 25, 1: 9}
-    with pytest.raises(ConfigError, match=r"^k\.from_dict"):
-        ModeClassifier.from_dict({"modes": []}, key="k")
-    state = clf.to_dict()
+    with pytest.raises(ConfigError, match=r"^k\.from_state_dict"):
+        ModeClassifier.from_state_dict({"modes": []}, key="k")
+    state = clf.state_dict()
     state["settings"]["min_batch"] = 0
     with pytest.raises(ConfigError, match=rf"^{KEY}\.min_batch"):
-        ModeClassifier.from_dict(state)
+        ModeClassifier.from_state_dict(state)

@@ -12,9 +12,8 @@ import pytest
 from scipy.integrate import quad
 
 from ccm.core.errors import ConfigError
-from ccm.tasks.retiming import (
-    RetimedPattern,
-    TimeWarp,
+from ccm.tasks.retiming import RetimedPattern, TimeWarp
+from ccm.tasks.smooth_step import (
     blend,
     blend_weight,
     profile_samples,

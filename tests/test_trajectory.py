@@ -9,14 +9,8 @@ import numpy as np
 import pytest
 
 from ccm.core.errors import ConfigError
-from ccm.tasks.trajectory import (
-    ArcSegment,
-    HoldSegment,
-    LineSegment,
-    MotionPattern,
-    build_pattern,
-    min_jerk,
-)
+from ccm.tasks.segments import ArcSegment, HoldSegment, LineSegment, min_jerk
+from ccm.tasks.trajectory import MotionPattern, build_pattern
 
 EXACT = 1e-12
 # Central differences with step H: truncation error ~ H² · (third derivative) and rounding

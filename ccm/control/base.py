@@ -18,8 +18,8 @@ class Controller(ABC):
 
     A controller never sees a simulator handle or ground truth: only the ``Observation``
     (pose, twist, measured wrench, time) and the target pattern sample. Controllers that
-    learn across trials override :meth:`end_trial`, and :meth:`learned_state` /
-    :meth:`load_learned_state` so that what they learned can be saved at the end of a run
+    learn across trials override :meth:`end_trial`, and :meth:`state_dict` /
+    :meth:`load_state_dict` so that what they learned can be saved at the end of a run
     and start a later run (``ccm run ... init_from=<run dir>``; JSON, no pickle).
     """
 
@@ -66,7 +66,7 @@ class Controller(ABC):
         trial, before :meth:`end_trial`). Plain data; ``{}`` by default."""
         return {}
 
-    def learned_state(self) -> dict[str, Any] | None:
+    def state_dict(self) -> dict[str, Any] | None:
         """What the controller has learned across trials, as JSON-safe data.
 
         Nested dicts (string keys), lists, strings, bools, ints and finite floats only (numpy
@@ -80,8 +80,8 @@ class Controller(ABC):
         """
         return None
 
-    def load_learned_state(self, state: Mapping[str, Any]) -> None:
-        """Restore :meth:`learned_state` output (call between trials, e.g. before the first).
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict` output (call between trials, e.g. before the first).
 
         Settings come from this controller's own config; only what was learned comes from
         ``state``. The controller is unchanged if the state is rejected.

@@ -3,7 +3,7 @@
 Format (JSON, never pickle)::
 
     {"format": "ccm-learned-state", "version": 1, "controller_type": "avic_modes",
-     "condition": "<name>", "trials": 5, "state": {...Controller.learned_state()...}}
+     "condition": "<name>", "trials": 5, "state": {...Controller.state_dict()...}}
 
 ``trials`` counts the trials the state has learned from, over all the runs it came through.
 Every problem when loading is a one-line :class:`ConfigError` named ``init_from``.
@@ -35,9 +35,9 @@ def controller_type(controller: Controller) -> str:
 
 def save_states(state_dir: Path, items: Iterable[tuple[str, Controller, int]]) -> None:
     """Write ``<state_dir>/<condition>.json`` for each (condition, controller, trials) whose
-    controller learns (:meth:`Controller.learned_state` is not None)."""
+    controller learns (:meth:`Controller.state_dict` is not None)."""
     for name, controller, trials in items:
-        state = controller.learned_state()
+        state = controller.state_dict()
         if state is None:
             continue
         record = {
@@ -66,7 +66,7 @@ def load_states(init_from: Any, items: Iterable[tuple[str, Controller]]) -> dict
     for name, controller in items:
         path = state_dir / f"{name}.json"
         if not path.is_file():
-            if controller.learned_state() is None:
+            if controller.state_dict() is None:
                 continue
             hint = f"found: {', '.join(found)}" if found else "the run saved no learned state"
             raise ConfigError(
@@ -98,7 +98,7 @@ def _load_state_file(path: Path, controller: Controller) -> int:
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 0 or "state" not in data:
         raise ConfigError("init_from", f"{path}: needs 'trials' (an integer >= 0) and 'state'")
     try:
-        controller.load_learned_state(data["state"])
+        controller.load_state_dict(data["state"])
     except ConfigError as exc:
         problem = exc.problem if exc.key == "init_from" else str(exc)
         raise ConfigError("init_from", f"{path}: {problem}") from None

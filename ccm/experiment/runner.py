@@ -161,7 +161,7 @@ def plan_experiment(
             raise ConfigError(exc.key, f"{exc.problem} (condition {cond.name})") from None
     init_from = OmegaConf.select(cfg, "init_from", default=None)
     if init_from is not None:
-        load_learned_states(init_from, plan)
+        load_state_dicts(init_from, plan)
     return plan
 
 
@@ -188,7 +188,7 @@ def save_learned_states(out_dir: Path, plan: Plan, trials: dict[str, int]) -> No
     )
 
 
-def load_learned_states(init_from: Any, plan: Plan) -> None:
+def load_state_dicts(init_from: Any, plan: Plan) -> None:
     """Start each condition's controller from ``<init_from>/state/<condition>.json``."""
     prior = load_states(init_from, [(c.name, ph[0][1].controller) for c, ph in plan])
     for cond, _ in plan:

@@ -40,7 +40,7 @@ def _dot3(c0: float, c1: float, c2: float, b0: float, b1: float, b2: float) -> f
 
 @njit(cache=True)
 def arc_eval(t_local: float, duration: float, sweep: float, basis: np.ndarray) -> np.ndarray:
-    """``C(t) @ B`` of :class:`~ccm.tasks.trajectory.ArcSegment`: rows position, velocity,
+    """``C(t) @ B`` of :class:`~ccm.tasks.segments.ArcSegment`: rows position, velocity,
     acceleration, shape (3, n).
 
     θ = sweep · s(τ) with the min-jerk s(τ) = 10τ³ − 15τ⁴ + 6τ⁵ (:func:`min_jerk`), and

@@ -47,13 +47,8 @@ from typing import Any
 import numpy as np
 
 from ccm.control.adaptive.contact_events import ContactEvents, TransitionWindow
-from ccm.control.adaptive.contact_regions import (
-    approach_passes,
-    in_plan_order,
-    speed_pieces,
-    to_segment_end,
-)
 from ccm.control.adaptive.modal import ModalAVIC
+from ccm.control.adaptive.replan import plan_passes, rate_changes, windows_ahead
 from ccm.control.adaptive.transition import KINDS, check_kinds, transition_force
 from ccm.core.errors import (
     ConfigError,
@@ -205,92 +200,26 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             len(c.approach.velocities) if c.approach is not None else 0
             for c in self.contact_map.contacts
         ]
-        ts = np.arange(0.0, pattern.duration + 0.5 * self.path_dt, self.path_dt)
-        path = pattern.sample_many(ts)
-        pos, speed = path["position"], np.linalg.norm(path["velocity"], axis=1)
-        self._slow, self._impactless = [], []
-        contacts = self.contact_map.contacts
-        passes = [
-            approach_passes(c.belief, pos, self.sigma_scale, self.min_region_m) for c in contacts
-        ]
-        ordered = [
-            i for i, c in enumerate(contacts) if c.kind == "collision" and c.source == "config"
-        ]
-        for i, ps in zip(ordered, in_plan_order([passes[i] for i in ordered]), strict=True):
-            passes[i] = ps
-        for i, c in enumerate(contacts):
-            for p in passes[i]:
-                if c.kind != "collision":
-                    self._impactless.append((i, float(ts[p.start]), float(ts[p.exit])))
-                    continue
-                v_a = c.approach.next_velocity() if c.approach is not None else math.inf
-                p = to_segment_end(p, path["segment"])
-                pieces = speed_pieces(ts, speed, path["segment"], [p], v_a)
-                self._slow.append((i, float(ts[p.start]), float(ts[p.exit]), pieces))
-        self._slow.sort(key=lambda e: e[1])
-        self._impactless.sort(key=lambda e: e[1])
+        self._slow, self._impactless = plan_passes(
+            self.contact_map.contacts, pattern, self.path_dt, self.sigma_scale, self.min_region_m
+        )
         self._changes, self._rate0 = [], 1.0
         self._replan(0.0)
         return self._retimed
 
     def _replan(self, t_from: float) -> None:
-        """(Re)build the warp from wall time ``t_from`` on, keeping earlier rate changes.
-
-        Every approaching pass through the region C of a collision not yet made brings its
-        speed-limit pieces (:func:`ccm.control.adaptive.contact_regions.speed_pieces`: per plan
-        segment, ρ = v_a / the segment's top speed in C; holds and slow segments keep ρ = 1),
-        so the target never moves faster than v_a inside C. Where pieces overlap, the
-        smallest rate applies. A slow-down is complete where its piece begins (Eq. 10: the
-        switch is complete on reaching C); a speed-up starts where the piece ends; each change
-        lasts ``blend_s`` (shorter if the plan leaves no room) with Eq. 11's C∞ profile.
-        """
+        """(Re)build the warp and the transition windows from wall time ``t_from`` on,
+        keeping earlier rate changes (:mod:`ccm.control.adaptive.replan`)."""
         changes = [c for c in self._changes if c[0] < t_from]
         warp = TimeWarp(changes, rate0=self._rate0)
-        windows = [w for w in self._windows if w.t0 < t_from]
         phi_from = float(warp.phi(t_from)) if t_from > 0 else 0.0
-        cur = changes[-1][2] if changes else self._rate0
-        t_free = max(t_from, changes[-1][1] if changes else 0.0)
-        spans = []  # (φ_start, φ_end, ρ, contact) of the speed-limit pieces still ahead
-        for i, _, phi_x, pieces in self._slow:
-            if i in self._hits or phi_x <= phi_from:
-                continue
-            spans += [(max(e, phi_from), x, r, i) for e, x, r in pieces if x > phi_from]
-
-        def wanted(phi: float) -> float:
-            return min([r for e, x, r, _ in spans if e <= phi < x] + [1.0])
-
-        for bp in sorted({phi_from} | {e for e, *_ in spans} | {x for _, x, *_ in spans}):
-            r = wanted(bp)
-            if abs(r - cur) < 1e-12:
-                continue
-            if bp <= phi_from and t_from == 0.0 and not changes:  # starts inside C
-                self._rate0 = cur = r
-                warp = TimeWarp([], rate0=r)
-                continue
-            if r < cur:  # slow down, complete at bp
-                phi_s = max(bp - 0.5 * (cur + r) * self.blend_s, float(warp.phi(t_free)))
-                t_s = warp.inverse(phi_s)
-                dur = max(2.0 * (bp - phi_s) / (cur + r), 0.02)
-            else:  # speed up from bp
-                t_s = max(warp.inverse(bp), t_free)
-                dur = self.blend_s
-            changes.append((t_s, t_s + dur, r))
-            warp = TimeWarp(changes, rate0=self._rate0)
-            cur, t_free = r, t_s + dur
-        for i, phi_c, phi_x, _ in self._slow:  # one transition window per approaching pass
-            if i in self._hits or phi_x <= phi_from:
-                continue
-            if phi_c <= phi_from:  # inside C now: the transition controller at once
-                t0 = t1 = t_from
-            else:
-                t1 = warp.inverse(phi_c)
-                t0 = max(t1 - self.blend_s, t_from)
-            windows.append(TransitionWindow(i, "collision", t0, t1 + 1e-9, warp.inverse(phi_x)))
-        for i, phi_c, phi_x in self._impactless:
-            if phi_c > phi_from:
-                t_c = warp.inverse(phi_c)
-                t0 = max(t_c - self.blend_s, t_from)
-                windows.append(TransitionWindow(i, "impactless", t0, t_c, warp.inverse(phi_x)))
+        warp, self._rate0 = rate_changes(
+            changes, warp, self._rate0, self._slow, self._hits, t_from, phi_from, self.blend_s
+        )
+        windows = [w for w in self._windows if w.t0 < t_from]
+        windows += windows_ahead(
+            self._slow, self._impactless, self._hits, warp, t_from, phi_from, self.blend_s
+        )
         self._changes, self._windows = changes, windows
         if self._retimed is None:
             self._retimed = RetimedPattern(self._pattern, warp)
@@ -309,6 +238,15 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             self._trigger_pos = obs.position.copy()
         cmd = super().step(obs, target)
         self._impactless_event(obs)
+        hit = self._contact_made(obs, target, event)
+        cmd, alpha = self._blend_transitions(obs, target, cmd)
+        self._signals.update(self._ant_signals(alpha, hit))
+        if self._retimed is not None:
+            self._signals["pattern_rate"] = float(self._retimed.warp.rate(obs.t))
+        return cmd
+
+    def _contact_made(self, obs: Observation, target: TargetSample, event: Any) -> float:
+        """Record a collision (1) or a quasi-static contact (2) in the map; 0 for none."""
         hit = 0.0
         if event is not None and not self._approaching(event):
             event = None
@@ -340,6 +278,13 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                 )  # fmt: skip
                 hit = 2.0
                 self._release(ev.index, obs.t)
+        return hit
+
+    def _blend_transitions(
+        self, obs: Observation, target: TargetSample, cmd: Command
+    ) -> tuple[Command, float]:
+        """Eq. 10 between the base command and the transition controllers (Eq. 8); the
+        command and the total transition weight α."""
         # Eq. 10 with two transition controllers (Eq. 8): the collision one (K* = k_collision;
         # the base's force loop kept unless the force direction lies along the motion, where
         # the re-timed target, not the force loop, must set the approach speed) takes
@@ -372,10 +317,7 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             self._signals["stiffness_Npm"] = (
                 (1.0 - alpha) * k1 + a_c * self.k_collision + a_i * self.k_max
             )
-        self._signals.update(self._ant_signals(alpha, hit))
-        if self._retimed is not None:
-            self._signals["pattern_rate"] = float(self._retimed.warp.rate(obs.t))
-        return cmd
+        return cmd, alpha
 
     def _impactless_event(self, obs: Observation) -> None:
         """An Algorithm 1 decision that changes the mode is an impact-less contact event."""
@@ -450,15 +392,15 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         if self.contact_map is not None:
             self.contact_map.end_trial()
 
-    def learned_state(self) -> dict[str, Any]:
-        """:meth:`ModalAVIC.learned_state` plus ``contact_map``: the contact beliefs and their
-        approach-velocity models (:meth:`ContactMap.to_dict`; None before the first trial)."""
-        state = super().learned_state()
-        state["contact_map"] = None if self.contact_map is None else self.contact_map.to_dict()
+    def state_dict(self) -> dict[str, Any]:
+        """:meth:`ModalAVIC.state_dict` plus ``contact_map``: the contact beliefs and their
+        approach-velocity models (:meth:`ContactMap.state_dict`; None before the first trial)."""
+        state = super().state_dict()
+        state["contact_map"] = None if self.contact_map is None else self.contact_map.state_dict()
         return state
 
-    def load_learned_state(self, state: Mapping[str, Any]) -> None:
-        """Restore :meth:`learned_state` output. A saved contact map replaces the one
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict` output. A saved contact map replaces the one
         :meth:`prepare` would build from the task's nominal contacts (it builds one only while
         there is none); its settings (``anticipation.map``) stay this config's.
 
@@ -478,8 +420,8 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                     {**c, "approach": c["approach"] and {**c["approach"], "params": approach}}
                     for c in data["contacts"]
                 ]
-                merged = {**data, "settings": ours.to_dict()["settings"], "contacts": contacts}
-                cmap = ContactMap.from_dict(merged, key="init_from")
+                merged = {**data, "settings": ours.state_dict()["settings"], "contacts": contacts}
+                cmap = ContactMap.from_state_dict(merged, key="init_from")
                 dim = getattr(self, "dim", cmap.dim)
                 if cmap.dim != dim:
                     raise ConfigError(
@@ -487,5 +429,5 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                     )
             except STATE_ERRORS as exc:
                 raise state_error(exc) from None
-        super().load_learned_state({k: v for k, v in state.items() if k != "contact_map"})
+        super().load_state_dict({k: v for k, v in state.items() if k != "contact_map"})
         self.contact_map = cmap

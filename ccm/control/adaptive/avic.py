@@ -376,13 +376,13 @@ class AVIC(Controller):
         self.eps0, self.r = eps0, r
         self._calib_trials, self._calib_errors = trials, errors
 
-    def learned_state(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, Any]:
         """The forward model (:meth:`IncrementalForwardModel.state_dict` or the fixed GMM's)
         and the calibration of ε₀ and r; λ and the predictions are per-trial state."""
         return {"forward_model": self.model.state_dict(), "calibration": self.calibration_state()}
 
-    def load_learned_state(self, state: Mapping[str, Any]) -> None:
-        """Restore :meth:`learned_state` output into the forward model built from the config
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict` output into the forward model built from the config
         (same ``forward_model.kind`` and ``feature_scale``; other settings stay the config's).
 
         Raises:

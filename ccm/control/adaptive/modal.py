@@ -292,22 +292,22 @@ class ModalAVIC(AVIC):
 
     # ------------------------------------------------------------------ learned state
 
-    def learned_state(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, Any]:
         """The mode classifier, and per mode (``-1`` = free space) its forward model and the
         number of samples it has been revised with (``min_mode_samples``), and the
         calibration of ε₀ and r (:meth:`AVIC.calibration_state`). Batches, the trigger and the
         current mode are per-trial state."""
         return {
             "calibration": self.calibration_state(),
-            "classifier": self.classifier.to_dict(),
+            "classifier": self.classifier.state_dict(),
             "modes": [
                 {"mode": m, "samples": self.samples[m], "forward_model": fm.state_dict()}
                 for m, fm in sorted(self.models.items())
             ],
         }
 
-    def load_learned_state(self, state: Mapping[str, Any]) -> None:
-        """Restore :meth:`learned_state` output. Classifier and forward-model settings stay
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict` output. Classifier and forward-model settings stay
         this config's; the modes, their clusters, models and sample counts come from
         ``state``. The current mode becomes free space.
 
@@ -316,8 +316,9 @@ class ModalAVIC(AVIC):
         """
         check_state_keys(state, ("calibration", "classifier", "modes"))
         try:
-            settings = self.classifier.to_dict()["settings"]
-            classifier = ModeClassifier.from_dict({**state["classifier"], "settings": settings})
+            settings = self.classifier.state_dict()["settings"]
+            saved = {**state["classifier"], "settings": settings}
+            classifier = ModeClassifier.from_state_dict(saved)
             models: dict[int, Any] = {}
             samples: dict[int, int] = {}
             for rec in state["modes"]:

@@ -209,7 +209,7 @@ class BAC(Controller):
         self._eps = []
         self._ep = []
 
-    def learned_state(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, Any]:
         """The learned profiles F(k), K(k) as nested lists (JSON-safe; null before the first
         trial) and the number of trials they have learned from."""
         learned = self.force_profile is not None and self.stiffness_profile is not None
@@ -219,8 +219,8 @@ class BAC(Controller):
             "trials_learned": self.trials_learned,
         }
 
-    def load_learned_state(self, state: Mapping[str, Any]) -> None:
-        """Restore profiles saved by :meth:`learned_state` (lists or arrays).
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore profiles saved by :meth:`state_dict` (lists or arrays).
 
         Raises:
             ConfigError: ``init_from``, on malformed profiles or another dimension.

@@ -134,7 +134,7 @@ class GPMPC(Controller):
         self.disturbance_alpha: float | None = None  # α̂ of Eq. 16 once estimated
         self._trials_done = 0
         self._problem: Any = None
-        self._needs_fit = False  # set by load_learned_state; fitted at the next reset
+        self._needs_fit = False  # set by load_state_dict; fitted at the next reset
         self.infeasible_total = 0
         self._timing: list[float] = []
         self._iterations: list[int] = []
@@ -327,7 +327,7 @@ class GPMPC(Controller):
             },
         }
 
-    def learned_state(self) -> dict[str, Any] | None:
+    def state_dict(self) -> dict[str, Any] | None:
         """The demonstration data per mode, the per-demonstration high-frequency force power
         (α of Eq. 16) and the number of trials done (JSON; the GPs are refitted
         deterministically from it on load)."""
@@ -337,7 +337,7 @@ class GPMPC(Controller):
             "hf_power": [np.asarray(p).tolist() for p in self._hf_power],
         }
 
-    def load_learned_state(self, state: Mapping[str, Any]) -> None:
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
         try:
             data = [[np.asarray(r, dtype=float) for r in rows] for rows in state["data"]]
             done = int(state["trials_done"])

@@ -157,14 +157,15 @@ class ApproachVelocityModel:
         cap = self.velocity_limit()
         return self.v_min if cap <= 0.0 else min(v, cap)
 
-    def to_dict(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, Any]:
         """JSON-safe state: settings and the (v, F) pairs."""
         pairs = {"velocities": self.velocities[:], "forces": self.forces[:]}
         return {"params": self.get_params()} | pairs
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], key: str) -> ApproachVelocityModel:
-        """Rebuild from :meth:`to_dict` output (replaying the impacts); ConfigError if malformed."""
+    def from_state_dict(cls, data: Mapping[str, Any], key: str) -> ApproachVelocityModel:
+        """Rebuild from :meth:`state_dict` output (replaying the impacts); ConfigError if
+        malformed."""
         try:
             out = cls(**constructor_kwargs(cls, data["params"], key), key=key)
             for v, f in zip(data["velocities"], data["forces"], strict=True):

@@ -400,7 +400,7 @@ class ContactMap:
             c.updated_this_trial = False
         self.trial += 1
 
-    def to_dict(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, Any]:
         """JSON-safe state: format tag and version, settings, trial count and every contact."""
         names = ("dim", "gate", "once_per_trial", "key")
         stds = ("process_noise_std", "measurement_noise_std", "new_contact_std")
@@ -410,7 +410,7 @@ class ContactMap:
         contacts = [
             {n: getattr(c, n) for n in fields}
             | {"mean": c.belief.mean.tolist(), "cov": c.belief.cov.tolist()}
-            | {"n_updates": c.belief.n_updates, "approach": c.approach and c.approach.to_dict()}
+            | {"n_updates": c.belief.n_updates, "approach": c.approach and c.approach.state_dict()}
             for c in self.contacts
         ]
         settings["approach"] = dict(self.approach_params)
@@ -418,8 +418,8 @@ class ContactMap:
         return head | {"trial": self.trial, "contacts": contacts}
 
     @classmethod
-    def from_dict(cls, data: Any, key: str = "init_from") -> ContactMap:
-        """Rebuild from :meth:`to_dict` output; any problem is a ConfigError named ``key``."""
+    def from_state_dict(cls, data: Any, key: str = "init_from") -> ContactMap:
+        """Rebuild from :meth:`state_dict` output; any problem is a ConfigError named ``key``."""
         fmt = data.get("format") if isinstance(data, Mapping) else type(data).__name__
         if fmt != _FORMAT:
             raise ConfigError(key, f"not a contact map (format {fmt!r}, expected {_FORMAT!r})")
@@ -440,7 +440,8 @@ class ContactMap:
                 if (approach is None) != (kind == "impactless"):
                     raise ConfigError(f"{k}.approach", "a collision, and only a collision, has one")
                 if approach is not None:
-                    approach = ApproachVelocityModel.from_dict(approach, f"{out.key}.approach")
+                    akey = f"{out.key}.approach"
+                    approach = ApproachVelocityModel.from_state_dict(approach, akey)
                 source = check_choice(f"{k}.source", rec["source"], SOURCES)
                 flag = bool(rec["updated_this_trial"])
                 out.contacts.append(Contact(belief, kind, str(rec["name"]), approach, source, flag))
@@ -451,10 +452,10 @@ class ContactMap:
         return out
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write :meth:`to_dict` as JSON atomically (a temporary file, then ``os.replace``)."""
+        """Write :meth:`state_dict` as JSON atomically (a temporary file, then ``os.replace``)."""
         path = Path(path)
         tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=False), encoding="utf-8")
+        tmp.write_text(json.dumps(self.state_dict(), indent=1, allow_nan=False), encoding="utf-8")
         os.replace(tmp, path)
         return path
 
@@ -466,6 +467,6 @@ class ContactMap:
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
             raise ConfigError(key, f"cannot read contact map {str(path)!r}: {e}") from None
         try:
-            return cls.from_dict(data, key=key)
+            return cls.from_state_dict(data, key=key)
         except ConfigError as e:
             raise ConfigError(key, f"{str(path)!r}: {e.problem}") from None

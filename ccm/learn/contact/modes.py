@@ -352,7 +352,7 @@ class ModeClassifier:
         self.n_features_in_ = x.shape[1]
         return ModeDecision(self.n_modes - 1, True, conf, second, counts)
 
-    def to_dict(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, Any]:
         """JSON-safe state: settings, and per mode its subcluster centres and point count."""
         return {
             "format": "ccm.modes.ModeClassifier/1",
@@ -371,8 +371,8 @@ class ModeClassifier:
         }
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], key: str | None = None) -> ModeClassifier:
-        """Rebuild a classifier from :meth:`to_dict` output.
+    def from_state_dict(cls, data: Mapping[str, Any], key: str | None = None) -> ModeClassifier:
+        """Rebuild a classifier from :meth:`state_dict` output.
 
         Each mode's Birch is rebuilt by ``partial_fit`` of its stored subcluster centres
         (Birch's CF tree is not public API). Counts and centres are restored; stored centres
@@ -381,12 +381,12 @@ class ModeClassifier:
         a cluster's radius may be assigned differently.
 
         Args:
-            data: Output of :meth:`to_dict` (e.g. after a JSON round trip).
+            data: Output of :meth:`state_dict` (e.g. after a JSON round trip).
             key: Error-message prefix; ``None`` uses the stored key.
 
         Raises:
             ConfigError: On malformed data, named ``f"{key}.<arg>"`` or
-                ``f"{key}.from_dict..."``.
+                ``f"{key}.from_state_dict..."``.
         """
         try:
             s = dict(data["settings"])
@@ -394,11 +394,11 @@ class ModeClassifier:
             modes, n_features = list(data["modes"]), data["n_features"]
         except (KeyError, TypeError) as e:
             k = key if key is not None else "controller.modes.classifier"
-            raise ConfigError(f"{k}.from_dict", f"malformed state: {e!r}") from None
+            raise ConfigError(f"{k}.from_state_dict", f"malformed state: {e!r}") from None
         args = (s.get(a) for a in ("threshold", "confidence_threshold", "min_batch"))
         out = cls(*args, s.get("branching_factor", 50), key=key)
         for i, rec in enumerate(modes):
-            k = f"{key}.from_dict.modes[{i}]"
+            k = f"{key}.from_state_dict.modes[{i}]"
             try:
                 centres = np.asarray(rec["centres"], dtype=float)
                 count = check_int_positive(f"{k}.count", rec["count"])

@@ -193,12 +193,12 @@ class IncrementalForwardModel:
 
     def state_dict(self) -> dict[str, Any]:
         """JSON-safe learned state: kind, feature scale and the IGMM snapshot
-        (:meth:`ccm.learn.mixtures.igmm.IGMM.to_dict`)."""
+        (:meth:`ccm.learn.mixtures.igmm.IGMM.state_dict`)."""
         return {
             "kind": "igmm",
             "feature_scale": self.scale.tolist(),
             "horizon_s": self.horizon_s,
-            "igmm": self.model.to_dict(),
+            "igmm": self.model.state_dict(),
         }
 
     def load_state_dict(self, data: Mapping[str, Any]) -> None:
@@ -215,7 +215,8 @@ class IncrementalForwardModel:
         if not isinstance(snap, Mapping):
             raise ValueError("forward model state: igmm must be a mapping")
         try:
-            model = IGMM.from_dict({**snap, "params": self.model.get_params()}, key=self.model.key)
+            snap = {**snap, "params": self.model.get_params()}
+            model = IGMM.from_state_dict(snap, key=self.model.key)
         except ConfigError as exc:
             raise ValueError(str(exc)) from None
         self._bind(model)

@@ -469,8 +469,8 @@ class IGMM:
     # persistence (no pickle)
     # -----------------------------------------------------------------------------------------
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe snapshot (settings, components, counters); see :meth:`from_dict`."""
+    def state_dict(self) -> dict[str, Any]:
+        """JSON-safe snapshot (settings, components, counters); see :meth:`from_state_dict`."""
         n = self.n_components_
         return {
             "format": _FORMAT,
@@ -485,8 +485,8 @@ class IGMM:
         }
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], *, key: str = "igmm") -> IGMM:
-        """Rebuild a model from :meth:`to_dict` output.
+    def from_state_dict(cls, data: Mapping[str, Any], *, key: str = "igmm") -> IGMM:
+        """Rebuild a model from :meth:`state_dict` output.
 
         Raises:
             ValueError: wrong format, inconsistent shapes, non-finite values, covariances
@@ -635,7 +635,7 @@ class IGMM:
                 "support": raw["support"],
                 "ages": raw["ages"],
             }
-            return cls.from_dict(data, key=key)
+            return cls.from_state_dict(data, key=key)
         except ConfigError as exc:
             raise ValueError(f"{path}: invalid IGMM settings ({exc})") from None
         except (TypeError, ValueError) as exc:
