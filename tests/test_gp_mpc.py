@@ -8,7 +8,8 @@ import pytest
 
 from ccm.control.mpc.admittance import rollout
 from ccm.control.mpc.gp_mpc import GPMPC
-from ccm.control.mpc.problem import GPMPCProblem, Weights
+from ccm.control.mpc.problem import GPMPCProblem
+from ccm.control.mpc.settings import Weights
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
 from ccm.learn.gp.gp_force import GPForceModels

@@ -90,7 +90,8 @@ def test_gp_mpc_compiled_same_solution_along_a_closed_loop(tmp_path, monkeypatch
     """GPMPCProblem with codegen gives the uncompiled solutions (to 1e-8) over warm starts."""
     monkeypatch.setenv(mc.CACHE_ENV, str(tmp_path))
     from ccm.control.mpc.admittance import system_matrices
-    from ccm.control.mpc.problem import GPMPCProblem, Weights
+    from ccm.control.mpc.problem import GPMPCProblem
+    from ccm.control.mpc.settings import Weights
     from ccm.learn.gp.gp_force import GPForceModels
 
     rng = np.random.default_rng(3)

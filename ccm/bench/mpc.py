@@ -92,7 +92,8 @@ def build_problem(
     **features: Any,
 ) -> Any:
     """The benchmark's :class:`GPMPCProblem` (``features``: chance, disturbance, ...)."""
-    from ccm.control.mpc.problem import GPMPCProblem, Weights
+    from ccm.control.mpc.problem import GPMPCProblem
+    from ccm.control.mpc.settings import Weights
 
     weights = {"vel": 1.0, "delta_mass": 1e-3, "delta_damping": 1e-6, "f_ref_target": 0.01}
     weights.update(features.pop("weights", {}))

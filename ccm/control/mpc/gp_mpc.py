@@ -102,16 +102,18 @@ class GPMPC(Controller):
             "init_mass": init_mass, "init_damping": init_damping, "init_f_ref": init_f_ref,
             "demo_mass": demo_mass, "demo_damping": demo_damping, "demo_f_ref": demo_f_ref,
         }  # fmt: skip
-        self._alpha_from_demos = False  # mpc.disturbance.alpha: demonstrations (_check_alpha)
+        self._alpha_from_demos = False  # mpc.disturbance.alpha: demonstrations
         self._split_hz = 15.0
         if isinstance(mpc, bool):
             self.mpc_cfg: dict[str, Any] | None = {} if mpc else None
         elif isinstance(mpc, Mapping):
             self.mpc_cfg = dict(mpc)
-            from ccm.control.mpc.problem import check_settings
+            from ccm.control.mpc.settings import MPCSettings  # casadi: only for the MPC
 
-            check_settings(self.mpc_cfg, f"{key}.mpc")
-            self._check_alpha()
+            MPCSettings.parse(self.mpc_cfg, f"{key}.mpc")  # one clear error at start-up
+            dist = self.mpc_cfg.get("disturbance") or {}
+            self._alpha_from_demos = dist.get("alpha") == "demonstrations"
+            self._split_hz = float(dist.get("omega_p", 2 * np.pi * 15)) / (2 * np.pi)
         else:
             raise ConfigError(f"{key}.mpc", "must be a mapping of MPC settings or false")
         self.mpc_period_s = check_positive(f"{key}.mpc_period_s", mpc_period_s)
@@ -140,17 +142,6 @@ class GPMPC(Controller):
         self._iterations: list[int] = []
         self._cpu: list[float] = []  # process CPU time of each solve: robust to a shared machine
         self.dim = 0
-
-    def _check_alpha(self) -> None:
-        """``mpc.disturbance.alpha``: a number > 0, or ``demonstrations`` (estimated)."""
-        dist = (self.mpc_cfg or {}).get("disturbance") or {}
-        alpha = dist.get("alpha", 1.0)
-        self._alpha_from_demos = alpha == "demonstrations"
-        if not self._alpha_from_demos:
-            check_positive(f"{self.key}.mpc.disturbance.alpha", alpha)
-        self._split_hz = check_positive(
-            f"{self.key}.mpc.disturbance.omega_p", dist.get("omega_p", 2 * np.pi * 15)
-        ) / (2 * np.pi)
 
     # ---------------------------------------------------------------- life cycle
     @property
@@ -211,7 +202,7 @@ class GPMPC(Controller):
     # ---------------------------------------------------------------- models
     def _fit(self) -> None:
         """Fit one GP set per mode from the demonstrations and build Eq. 13 (seed B §3.1.1)."""
-        from ccm.control.mpc.problem import GPMPCProblem, Weights
+        from ccm.control.mpc.problem import GPMPCProblem
         from ccm.learn.gp.gp_force import GPForceModels
 
         self.models = []
@@ -229,10 +220,8 @@ class GPMPC(Controller):
 
             self.disturbance_alpha = alpha_from_power(self._hf_power)
             cfg["disturbance"] = {**cfg["disturbance"], "alpha": self.disturbance_alpha}
-        weights = Weights(**(cfg.pop("weights", None) or {}))  # keys checked in __init__
         self._problem = GPMPCProblem(
-            [g.casadi_functions() for g in self.models], self.dim, weights=weights,
-            key=f"{self.key}.mpc", **cfg,
+            [g.casadi_functions() for g in self.models], self.dim, key=f"{self.key}.mpc", **cfg,
         )  # fmt: skip
 
     # ---------------------------------------------------------------- control

@@ -24,7 +24,8 @@ feasible command and counts the event.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,46 +34,14 @@ import numpy as np
 
 from ccm.control.mpc.admittance import system_matrices
 from ccm.control.mpc.codegen import make_solver
-from ccm.control.mpc.terms import chance_quantile, disturbance_h2, joint_torque_cost
+from ccm.control.mpc.settings import MPCSettings, vector
+from ccm.control.mpc.terms import disturbance_h2, joint_torque_cost
 from ccm.core.errors import (
     ConfigError,
-    check_bounds,
     check_int_positive,
-    check_keys,
-    check_nonneg,
-    check_positive,
 )
 
 GPFunctions = Mapping[str, ca.Function]  # "mean", "var", "grad" of one mode (gp_force.py)
-
-
-@dataclass(frozen=True)
-class Weights:
-    """Cost weights of Eq. 14 (diagonal Q's; scalars apply to every DOF).
-
-    Attributes:
-        vel: Q_μ on velocity ("just a small penalty on velocity", seed B §4.2.1).
-        pos_var, vel_var: Q_Σ on the position and velocity variances (trace form, §5.2).
-        force: Q_f on the GP mean force μ^f.
-        force_var: Q_Σ,f on the GP variance Σ^f.
-        f_ref: Q_u on f^r.
-        delta_mass, delta_damping: Q_u on ΔM, ΔD.
-        f_ref_target: weight on ‖f_target − f^r‖² (seed B §6.2's "‖15 − f^r_2‖" cost).
-        joint_torque: Q_τ of Eq. 15 (0 = off).
-        disturbance: weight on ‖X^d‖²₂ of Eq. 16 per DOF (0 = off).
-    """
-
-    vel: float = 1.0
-    pos_var: float = 0.0
-    vel_var: float = 0.0
-    force: float = 0.0
-    force_var: float = 0.0
-    f_ref: float = 0.0
-    delta_mass: float = 0.0
-    delta_damping: float = 0.0
-    f_ref_target: float = 0.0
-    joint_torque: float = 0.0
-    disturbance: float = 0.0
 
 
 @dataclass
@@ -88,54 +57,56 @@ class MPCSolution:
     predicted: np.ndarray  # (N_modes, H+1, 2n) predicted means, row 0 = ξ_t
 
 
-def _only(key: str, block: Mapping[str, Any], allowed: Sequence[str]) -> None:
-    """Reject keys of an option block that are not in ``allowed``."""
-    if not isinstance(block, Mapping):
-        raise ConfigError(key, f"must be a mapping with keys {', '.join(allowed)}")
-    check_keys(key, block, allowed)
+class _Constraints:
+    """The constraint rows g(w, p) of the NLP with their bounds, in the order added."""
+
+    def __init__(self) -> None:
+        self.exprs: list[ca.MX] = []
+        self.lower: list[float] = []
+        self.upper: list[float] = []
+
+    def add(self, expr: ca.MX, lo: float, hi: float) -> None:
+        self.exprs.append(expr)
+        self.lower.extend([lo] * expr.numel())
+        self.upper.extend([hi] * expr.numel())
 
 
-def check_settings(cfg: Mapping[str, Any], key: str = "controller.mpc") -> None:
-    """Validate the ``controller.mpc`` block before any model exists (one clear error at
-    start-up instead of after the demonstrations): the same checks as the constructor."""
-    import inspect
+@dataclass(frozen=True)
+class _ModeTerms:
+    """What every mode's terms share: the discretised admittance (A, B), M and D, the f^r
+    variables, the slack and the GP-variance factor, and the optional constraint settings."""
 
-    params = inspect.signature(GPMPCProblem.__init__).parameters
-    allowed = [p for p in params if p not in ("self", "gp_modes", "n", "key")]
-    _only(key, cfg, allowed)
-    kw = dict(cfg)
-    weights = kw.pop("weights", None) or {}
-    _only(f"{key}.weights", weights, list(Weights.__dataclass_fields__))
-    for name, val in weights.items():
-        check_nonneg(f"{key}.weights.{name}", val)
-    probe = GPMPCProblem.__new__(GPMPCProblem)
-    probe.key, probe.n = key, 2
-    check_int_positive(f"{key}.horizon", kw.get("horizon", 10))
-    check_positive(f"{key}.ts", kw.get("ts", 0.02))
-    for name in ("mass_bounds", "damping_bounds"):
-        if name in kw:
-            check_bounds(f"{key}.{name}", kw[name])
-    if "mass_bounds" in kw and check_bounds(f"{key}.mass_bounds", kw["mass_bounds"])[0] <= 0:
-        raise ConfigError(f"{key}.mass_bounds", "minimum mass must be > 0")
-    for name in ("delta_mass_max", "delta_damping_max", "continuity_slack"):
-        if name in kw:
-            check_nonneg(f"{key}.{name}", kw[name])
-    for name in ("f_ref_max", "f_ref_rate_max", "gp_var_scale"):
-        if name in kw:
-            check_positive(f"{key}.{name}", kw[name])
-    probe._chance_setup(kw.get("chance"))
-    probe._well_damped_setup(kw.get("well_damped"))
-    if kw.get("joint_torque"):
-        probe._joint_torque_setup(kw["joint_torque"])
-    if kw.get("disturbance"):
-        _only(f"{key}.disturbance", kw["disturbance"], ("alpha", "omega_p"))
+    a_b: tuple[ca.MX, ca.MX]
+    mass: ca.MX
+    damping: ca.MX
+    fr: list[ca.MX]
+    slack: float
+    var_scale: float
+    chance: tuple[float, float] | None
+    wd: tuple[float, float | None] | None
+    jt: Callable[[ca.MX, ca.MX], ca.MX] | None
 
 
-def _vec(key: str, value: Any, n: int) -> np.ndarray:
-    arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
-    if not np.all(np.isfinite(arr)):
-        raise ConfigError(key, f"must be finite, got {value!r}")
-    return arr
+def _ipopt_options(extra: Mapping[str, Any] | None) -> dict[str, Any]:
+    """IPOPT settings for warm-started solves, then the config's ``ipopt`` entries."""
+    opts = {
+        "ipopt.print_level": 0,
+        "print_time": False,
+        "ipopt.sb": "yes",
+        "ipopt.max_iter": 100,
+        "ipopt.tol": 1e-6,
+        "ipopt.warm_start_init_point": "yes",
+        # a warm start sits near the optimum: a small barrier parameter and bound pushes
+        # keep IPOPT there (8 instead of 24 iterations per solve, measured in make bench)
+        "ipopt.mu_init": 1e-4,
+        "ipopt.warm_start_bound_push": 1e-6,
+        "ipopt.warm_start_mult_bound_push": 1e-6,
+        "ipopt.warm_start_slack_bound_push": 1e-6,
+        "expand": True,  # SX graph: ~3x faster function evaluations than MX
+    }
+    for k, v in (extra or {}).items():
+        opts[f"ipopt.{k}"] = v
+    return opts
 
 
 class GPMPCProblem:
@@ -151,7 +122,7 @@ class GPMPCProblem:
         f_ref_max: bound |f^r_i| [N]; f_ref_rate_max: |f^r_{τ+1} − f^r_τ| [N] per step,
             also from the previous solve's f^r.
         f_ref_target: the target of the f^r-target cost [N] (n,).
-        weights: cost weights (:class:`Weights`).
+        weights: cost weights (:class:`ccm.control.mpc.settings.Weights`, or a mapping).
         continuity_slack: ϱ of Eq. 13.
         gp_var_scale: factor on the GP variance in the dynamics (1 = the paper; seed B's
             public reference code uses 10, a constant the paper does not state).
@@ -166,6 +137,8 @@ class GPMPCProblem:
             flags (e.g. "-O1"); the functions are generated as C, compiled once per GP fit
             and cached on disk (:mod:`ccm.control.mpc.codegen`), same solution, faster solves.
         key: configuration-key prefix for errors.
+
+    The settings are checked by :meth:`ccm.control.mpc.settings.MPCSettings.parse`.
     """
 
     def __init__(
@@ -173,48 +146,25 @@ class GPMPCProblem:
         gp_modes: Sequence[GPFunctions],
         n: int,
         *,
-        horizon: int = 10,
-        ts: float = 0.02,
-        mass_bounds: Sequence[float] = (5.0, 60.0),
-        damping_bounds: Sequence[float] = (500.0, 5000.0),
-        delta_mass_max: float = 5.0,
-        delta_damping_max: float = 500.0,
-        f_ref_max: float = 30.0,
-        f_ref_rate_max: float = 10.0,
-        f_ref_target: Any = 0.0,
-        weights: Weights | None = None,
-        continuity_slack: float = 0.0,
-        gp_var_scale: float = 1.0,
-        chance: Mapping[str, Any] | None = None,
-        well_damped: Mapping[str, Any] | None = None,
-        disturbance: Mapping[str, Any] | None = None,
-        joint_torque: Mapping[str, Any] | None = None,
-        ipopt: Mapping[str, Any] | None = None,
         key: str = "controller.mpc",
-        codegen: str | None = None,
+        **settings: Any,
     ) -> None:
         if not gp_modes:
             raise ConfigError(f"{key}.modes", "needs at least one mode's GP models")
         self.n = n = check_int_positive(f"{key}.n", n)
         self.n_modes = len(gp_modes)
-        self.horizon = H = check_int_positive(f"{key}.horizon", horizon)
-        self.ts = check_positive(f"{key}.ts", ts)
-        self.mass_bounds = check_bounds(f"{key}.mass_bounds", mass_bounds)
-        self.damping_bounds = check_bounds(f"{key}.damping_bounds", damping_bounds)
-        if self.mass_bounds[0] <= 0:
-            raise ConfigError(f"{key}.mass_bounds", "minimum mass must be > 0")
-        self.delta_mass_max = check_nonneg(f"{key}.delta_mass_max", delta_mass_max)
-        self.delta_damping_max = check_nonneg(f"{key}.delta_damping_max", delta_damping_max)
-        self.f_ref_max = check_positive(f"{key}.f_ref_max", f_ref_max)
-        self.f_ref_rate_max = check_positive(f"{key}.f_ref_rate_max", f_ref_rate_max)
-        self.w = weights or Weights()
-        for name, val in vars(self.w).items():
-            check_nonneg(f"{key}.weights.{name}", val)
-        target = _vec(f"{key}.f_ref_target", f_ref_target, n)
-        slack = check_nonneg(f"{key}.continuity_slack", continuity_slack)
-        var_scale = check_positive(f"{key}.gp_var_scale", gp_var_scale)
         self.key = key
-
+        st = self.settings = MPCSettings.parse(settings, key)
+        self.horizon = H = st.horizon
+        self.ts, self.mass_bounds, self.damping_bounds = st.ts, st.mass_bounds, st.damping_bounds
+        self.delta_mass_max, self.delta_damping_max = st.delta_mass_max, st.delta_damping_max
+        self.f_ref_max, self.f_ref_rate_max = st.f_ref_max, st.f_ref_rate_max
+        self.w = st.weights
+        if st.disturbance is not None and math.isnan(st.disturbance[0]):
+            raise ConfigError(
+                f"{key}.disturbance.alpha", "demonstrations: estimate it before the problem"
+            )
+        target = vector(f"{key}.f_ref_target", st.f_ref_target, n)
         # --- symbols: parameters p = [ξ_t, b, M_prev, D_prev, f^r_prev]
         xi0 = ca.MX.sym("xi0", 2 * n)
         belief = ca.MX.sym("belief", self.n_modes)
@@ -226,140 +176,96 @@ class GPMPCProblem:
             [ca.MX.sym(f"mu{m}_{k}", 2 * n) for k in range(1, H + 1)] for m in range(self.n_modes)
         ]
         mass, damping = m_prev + dm, d_prev + dd
-        a, b = system_matrices(mass, damping, self.ts)
-
-        g: list[ca.MX] = []
-        lbg: list[float] = []
-        ubg: list[float] = []
-
-        def add(expr: ca.MX, lo: float, hi: float) -> None:
-            g.append(expr)
-            lbg.extend([lo] * expr.numel())
-            ubg.extend([hi] * expr.numel())
-
+        g = _Constraints()
         # rate limits on f^r (linear)
-        add(fr[0] - fr_prev, -self.f_ref_rate_max, self.f_ref_rate_max)
+        g.add(fr[0] - fr_prev, -self.f_ref_rate_max, self.f_ref_rate_max)
         for k in range(1, H):
-            add(fr[k] - fr[k - 1], -self.f_ref_rate_max, self.f_ref_rate_max)
-
-        cost = self.w.f_ref * sum(ca.sumsqr(f) for f in fr)
-        cost += self.w.f_ref_target * sum(ca.sumsqr(f - target) for f in fr)
-        cost += self.w.delta_mass * ca.sumsqr(dm) + self.w.delta_damping * ca.sumsqr(dd)
-        if self.w.disturbance > 0.0:  # Eq. 16-17, per DOF, K dropped (§3.2)
-            dist = disturbance or {}
-            _only(f"{key}.disturbance", dist, ("alpha", "omega_p"))
-            alpha = check_positive(f"{key}.disturbance.alpha", dist.get("alpha", 1.0))
-            omega = check_positive(
-                f"{key}.disturbance.omega_p", dist.get("omega_p", 2 * np.pi * 15)
-            )
-            cost += self.w.disturbance * sum(
-                disturbance_h2(mass[i], damping[i], 0.0, alpha, omega) for i in range(n)
-            ) * H  # fmt: skip
-        q_chance = self._chance_setup(chance)
-        wd = self._well_damped_setup(well_damped)
-        jt = self._joint_torque_setup(joint_torque) if self.w.joint_torque > 0.0 else None
-
+            g.add(fr[k] - fr[k - 1], -self.f_ref_rate_max, self.f_ref_rate_max)
+        cost = self._shared_cost(fr, dm, dd, mass, damping, target)
+        terms = _ModeTerms(
+            a_b=system_matrices(mass, damping, self.ts), mass=mass, damping=damping, fr=fr,
+            slack=st.continuity_slack, var_scale=st.gp_var_scale, chance=st.chance,
+            wd=st.well_damped, jt=self._joint_torque() if self.w.joint_torque > 0.0 else None,
+        )  # fmt: skip
         for m, gp in enumerate(gp_modes):
-            mean_f, var_f, grad_f = gp["mean"], gp["var"], gp["grad"]
-            states = [xi0, *mus[m]]
-            poses = [st[:n] for st in states]
-            f_mu = [mean_f(x) for x in poses]  # GP at μ_t..μ_{t+H}: dynamics use 0..H-1,
-            f_var = [var_scale * var_f(x) for x in poses]  # the stage costs 1..H
-            sigma = ca.MX.zeros(2 * n, 2 * n)
-            mode_cost = 0
-            for k in range(H):
-                nxt = a @ states[k] + b @ (f_mu[k] - fr[k])  # Eq. 7
-                sigma = a @ sigma @ a.T + b @ ca.diag(f_var[k]) @ b.T  # Eq. 8
-                add(states[k + 1] - nxt, -slack, slack)
-                mu_next, fm_n, fv_n = states[k + 1], f_mu[k + 1], f_var[k + 1]
-                diag_s = ca.diag(sigma)
-                mode_cost += self.w.vel * ca.sumsqr(mu_next[n:])
-                mode_cost += self.w.pos_var * ca.sum1(diag_s[:n])
-                mode_cost += self.w.vel_var * ca.sum1(diag_s[n:])
-                mode_cost += self.w.force * ca.sumsqr(fm_n) + self.w.force_var * ca.sum1(fv_n)
-                if jt is not None:  # Eq. 15 with f_H = D ẋ (seed B §4.2.2)
-                    mode_cost += self.w.joint_torque * jt(poses[k + 1], damping * mu_next[n:])
-                if wd is not None:  # Eq. 19-20 on ξ_{t+1..t+H}; D² ≥ 4ζ²M K_e (D > 0)
-                    k_e = wd["fixed"] if wd["fixed"] is not None else -ca.diag(grad_f(poses[k + 1]))
-                    add(damping**2 - 4.0 * wd["zeta"] ** 2 * mass * k_e, 0.0, ca.inf)
-                if q_chance is not None and k == H - 1:  # Eq. 18 at ξ_{t+H}, both signs
-                    margin = q_chance * ca.sqrt(fv_n + 1e-12)
-                    add(self._f_max - fm_n - margin, 0.0, ca.inf)
-                    add(self._f_max + fm_n - margin, 0.0, ca.inf)
-            cost += belief[m] * mode_cost
-
-        w_list = [*fr, dm, dd, *[mu for mode in mus for mu in mode]]
-        self._w = ca.vertcat(*w_list)
+            cost += belief[m] * self._mode_cost(gp, [xi0, *mus[m]], terms, g)
+        self._w = ca.vertcat(*fr, dm, dd, *[mu for mode in mus for mu in mode])
         self._p = ca.vertcat(xi0, belief, m_prev, d_prev, fr_prev)
-        self._lbg, self._ubg = np.array(lbg), np.array(ubg)
-        opts = {
-            "ipopt.print_level": 0,
-            "print_time": False,
-            "ipopt.sb": "yes",
-            "ipopt.max_iter": 100,
-            "ipopt.tol": 1e-6,
-            "ipopt.warm_start_init_point": "yes",
-            # a warm start sits near the optimum: a small barrier parameter and bound pushes
-            # keep IPOPT there (8 instead of 24 iterations per solve, measured in make bench)
-            "ipopt.mu_init": 1e-4,
-            "ipopt.warm_start_bound_push": 1e-6,
-            "ipopt.warm_start_mult_bound_push": 1e-6,
-            "ipopt.warm_start_slack_bound_push": 1e-6,
-            "expand": True,  # SX graph: ~3x faster function evaluations than MX
-        }
-        for k_, v in (ipopt or {}).items():
-            opts[f"ipopt.{k_}"] = v
-        nlp = {"x": self._w, "p": self._p, "f": cost, "g": ca.vertcat(*g)}
-        self._solver = make_solver("gp_mpc", nlp, opts, codegen=codegen)
+        self._lbg, self._ubg = np.array(g.lower), np.array(g.upper)
+        nlp = {"x": self._w, "p": self._p, "f": cost, "g": ca.vertcat(*g.exprs)}
+        self._solver = make_solver("gp_mpc", nlp, _ipopt_options(st.ipopt), codegen=st.codegen)
         self._nw = int(self._w.numel())
         self._warm: dict[str, np.ndarray] | None = None
 
-    # ------------------------------------------------------------------------- options
-    def _chance_setup(self, chance: Mapping[str, Any] | None) -> float | None:
-        if not chance:
-            return None
-        k = f"{self.key}.chance"
-        _only(k, chance, ("f_max", "epsilon", "quantile"))
-        self._f_max = check_positive(f"{k}.f_max", chance.get("f_max", 12.0))
-        return float(
-            chance_quantile(
-                chance.get("epsilon", 0.5), form=chance.get("quantile", "normal"), key=k
-            )
-        )
+    # --------------------------------------------------------------------------- terms
+    def _shared_cost(
+        self,
+        fr: list[ca.MX],
+        dm: ca.MX,
+        dd: ca.MX,
+        mass: ca.MX,
+        damping: ca.MX,
+        target: np.ndarray,
+    ) -> ca.MX:
+        """The cost terms every mode shares: f^r, its target, ΔM, ΔD and Eq. 16-17."""  # fmt: skip
+        cost = self.w.f_ref * sum(ca.sumsqr(f) for f in fr)
+        cost += self.w.f_ref_target * sum(ca.sumsqr(f - target) for f in fr)
+        cost += self.w.delta_mass * ca.sumsqr(dm) + self.w.delta_damping * ca.sumsqr(dd)
+        if self.settings.disturbance is not None:  # Eq. 16-17, per DOF, K dropped (§3.2)
+            alpha, omega = self.settings.disturbance
+            cost += self.w.disturbance * sum(
+                disturbance_h2(mass[i], damping[i], 0.0, alpha, omega) for i in range(self.n)
+            ) * self.horizon  # fmt: skip
+        return cost
 
-    def _well_damped_setup(self, wd: Mapping[str, Any] | None) -> dict[str, Any] | None:
-        if not wd:
-            return None
-        k = f"{self.key}.well_damped"
-        _only(k, wd, ("zeta", "stiffness", "fixed_stiffness"))
-        zeta = check_positive(f"{k}.zeta", wd.get("zeta", 1.2))
-        source = wd.get("stiffness", "gp_gradient")
-        if source not in ("gp_gradient", "fixed"):
-            raise ConfigError(f"{k}.stiffness", f"must be gp_gradient or fixed, got {source!r}")
-        fixed = (
-            check_positive(f"{k}.fixed_stiffness", wd.get("fixed_stiffness", 700.0))
-            if source == "fixed"
-            else None
-        )
-        return {"zeta": zeta, "fixed": fixed}
-
-    def _joint_torque_setup(self, jt: Mapping[str, Any] | None) -> Any:
-        k = f"{self.key}.joint_torque"
-        jt = dict(jt or {})
-        _only(k, jt, ("shoulder", "l1", "l2", "z"))
-        shoulder = _vec(f"{k}.shoulder", jt.get("shoulder", (0.0, -0.4, 0.3)), 3)
-        l1 = check_positive(f"{k}.l1", jt.get("l1", 0.30))
-        l2 = check_positive(f"{k}.l2", jt.get("l2", 0.35))
-        z = float(jt.get("z", 0.0))
-        n = self.n
+    def _joint_torque(self) -> Callable[[ca.MX, ca.MX], ca.MX]:
+        """Eq. 15's cost of a hand pose and force (2-D poses padded to the TCP height z)."""
+        arm = self.settings.joint_torque
+        assert arm is not None  # set whenever its weight is on
+        pad = 3 - self.n
 
         def cost(pose: ca.MX, f_hand: ca.MX) -> ca.MX:
-            pad = 3 - n
-            x3 = ca.vertcat(pose, *([z] * pad)) if pad else pose
+            x3 = ca.vertcat(pose, *([arm.z] * pad)) if pad else pose
             f3 = ca.vertcat(f_hand, *([0.0] * pad)) if pad else f_hand
-            return joint_torque_cost(x3, f3, ca.DM.eye(4), shoulder, l1, l2)
+            return joint_torque_cost(x3, f3, ca.DM.eye(4), arm.shoulder, arm.l1, arm.l2)
 
         return cost
+
+    def _mode_cost(
+        self, gp: GPFunctions, states: list[ca.MX], t: _ModeTerms, g: _Constraints
+    ) -> ca.MX:
+        """One mode's stage costs over the horizon, adding its dynamics (Eq. 7-8), well-damped
+        (Eq. 19-20) and chance (Eq. 18) constraints to ``g``."""
+        n, w = self.n, self.w
+        mean_f, var_f, grad_f = gp["mean"], gp["var"], gp["grad"]
+        a, b = t.a_b
+        poses = [st[:n] for st in states]
+        f_mu = [mean_f(x) for x in poses]  # GP at μ_t..μ_{t+H}: dynamics use 0..H-1,
+        f_var = [t.var_scale * var_f(x) for x in poses]  # the stage costs 1..H
+        sigma = ca.MX.zeros(2 * n, 2 * n)
+        mode_cost = 0
+        for k in range(self.horizon):
+            nxt = a @ states[k] + b @ (f_mu[k] - t.fr[k])  # Eq. 7
+            sigma = a @ sigma @ a.T + b @ ca.diag(f_var[k]) @ b.T  # Eq. 8
+            g.add(states[k + 1] - nxt, -t.slack, t.slack)
+            mu_next, fm_n, fv_n = states[k + 1], f_mu[k + 1], f_var[k + 1]
+            diag_s = ca.diag(sigma)
+            mode_cost += w.vel * ca.sumsqr(mu_next[n:])
+            mode_cost += w.pos_var * ca.sum1(diag_s[:n])
+            mode_cost += w.vel_var * ca.sum1(diag_s[n:])
+            mode_cost += w.force * ca.sumsqr(fm_n) + w.force_var * ca.sum1(fv_n)
+            if t.jt is not None:  # Eq. 15 with f_H = D ẋ (seed B §4.2.2)
+                mode_cost += w.joint_torque * t.jt(poses[k + 1], t.damping * mu_next[n:])
+            if t.wd is not None:  # Eq. 19-20 on ξ_{t+1..t+H}; D² ≥ 4ζ²M K_e (D > 0)
+                zeta, fixed = t.wd
+                k_e = fixed if fixed is not None else -ca.diag(grad_f(poses[k + 1]))
+                g.add(t.damping**2 - 4.0 * zeta**2 * t.mass * k_e, 0.0, ca.inf)
+            if t.chance is not None and k == self.horizon - 1:  # Eq. 18 at ξ_{t+H}, ±
+                f_max, q = t.chance
+                margin = q * ca.sqrt(fv_n + 1e-12)
+                g.add(f_max - fm_n - margin, 0.0, ca.inf)
+                g.add(f_max + fm_n - margin, 0.0, ca.inf)
+        return mode_cost
 
     # --------------------------------------------------------------------------- solve
     def bounds(self, m_prev: np.ndarray, d_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
