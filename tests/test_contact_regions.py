@@ -19,7 +19,7 @@ from ccm.control.adaptive.contact_regions import (
     to_segment_end,
 )
 from ccm.experiment.runner import build_components, trial_seed
-from ccm.learn.contact.contacts import ContactBelief
+from ccm.learn.contact.belief import ContactBelief
 
 EYE = np.eye(2)
 

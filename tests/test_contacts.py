@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from ccm.core.errors import ConfigError
-from ccm.learn.contact.contacts import ApproachVelocityModel, ContactBelief, ContactMap
+from ccm.learn.contact.approach import ApproachVelocityModel
+from ccm.learn.contact.belief import ContactBelief
+from ccm.learn.contact.contacts import ContactMap
 
 
 def spd(rng: np.random.Generator, d: int, scale: float) -> np.ndarray:

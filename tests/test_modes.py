@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from ccm.core.errors import ConfigError
-from ccm.learn.contact.modes import ModeClassifier, ModeDecision, TransitionTrigger, mode_features
+from ccm.learn.contact.mode_features import TransitionTrigger, mode_features
+from ccm.learn.contact.modes import ModeClassifier, ModeDecision
 
 KEY = "controller.modes.classifier"
 

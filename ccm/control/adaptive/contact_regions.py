@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ccm.learn.contact.contacts import ContactBelief
+from ccm.learn.contact.belief import ContactBelief
 
 __all__ = [
     "Pass",

@@ -47,7 +47,8 @@ from ccm.core.errors import (
 )
 from ccm.core.filters import first_order_alpha
 from ccm.core.types import Observation, TargetSample
-from ccm.learn.contact.modes import FEATURE_KINDS, ModeClassifier, TransitionTrigger, feature_vector
+from ccm.learn.contact.mode_features import FEATURE_KINDS, TransitionTrigger, feature_vector
+from ccm.learn.contact.modes import ModeClassifier
 from ccm.learn.mixtures.forward_model import make_forward_model
 
 TRIGGER_SIGNALS = ("tangential_force", "feature")

@@ -207,7 +207,7 @@ class GPMPCProblem:
         damping: ca.MX,
         target: np.ndarray,
     ) -> ca.MX:
-        """The cost terms every mode shares: f^r, its target, ΔM, ΔD and Eq. 16-17."""  # fmt: skip
+        """The cost terms every mode shares: f^r, its target, ΔM, ΔD and Eq. 16-17."""
         cost = self.w.f_ref * sum(ca.sumsqr(f) for f in fr)
         cost += self.w.f_ref_target * sum(ca.sumsqr(f - target) for f in fr)
         cost += self.w.delta_mass * ca.sumsqr(dm) + self.w.delta_damping * ca.sumsqr(dd)

@@ -171,6 +171,39 @@ class ModalGPDynamics:
                 ``classifier`` fitted on other data.
         """
         t0 = time.perf_counter()
+        X, Y, modes = self._checked(X, Y, modes)
+        n, d_in = X.shape
+        d_out = Y.shape[1]
+        classes, counts = np.unique(modes, return_counts=True)
+        if np.any(counts < 2):
+            bad = classes[counts < 2].tolist()
+            raise ConfigError(
+                f"{self.key}.modes", f"every mode needs >= 2 points; too few for {bad}"
+            )
+
+        rng = np.random.default_rng(self.seed)
+        self.classes_ = classes
+        self.n_modes_ = int(classes.size)
+        self.d_in_, self.d_out_ = d_in, d_out
+        self.x_mean_ = X.mean(axis=0)
+        self.x_std_ = np.where(X.std(axis=0) > 1e-12, X.std(axis=0), 1.0)
+        self._fit_classifier(X, modes, counts, rng, classifier)
+        # --- per-mode GPs
+        target = Y - X[:, :d_out] if self.predict_delta else Y
+        self.gps_: list[list[FastGPR]] = []
+        self.gp_x_mean_: list[np.ndarray] = []
+        self.gp_x_std_: list[np.ndarray] = []
+        self.n_fit_warnings_ = 0
+        for c in classes:
+            idx = self._subsample(np.flatnonzero(modes == c), self.max_points_per_mode, rng)
+            self._fit_mode(X[idx], target[idx], rng)
+        self.fit_time_s_ = time.perf_counter() - t0
+        return self
+
+    def _checked(
+        self, X: np.ndarray, Y: np.ndarray, modes: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """X, Y as finite matrices of one length N, and the modes as N integer labels."""
         k = self.key
         X = _as_matrix(f"{k}.X", X)
         Y = _as_matrix(f"{k}.Y", Y)
@@ -184,76 +217,64 @@ class ModalGPDynamics:
             if not np.issubdtype(modes.dtype, np.number) or np.any(modes != np.round(modes)):
                 raise ConfigError(f"{k}.modes", "must be integer labels")
             modes = modes.astype(int)
-        n, d_in = X.shape
-        d_out = Y.shape[1]
-        if d_out > d_in:
-            raise ConfigError(f"{k}.Y", f"has {d_out} columns, more than X's {d_in}")
-        classes, counts = np.unique(modes, return_counts=True)
-        if np.any(counts < 2):
-            bad = classes[counts < 2].tolist()
-            raise ConfigError(f"{k}.modes", f"every mode needs >= 2 points; too few for {bad}")
+        if Y.shape[1] > X.shape[1]:
+            raise ConfigError(f"{k}.Y", f"has {Y.shape[1]} columns, more than X's {X.shape[1]}")
+        return X, Y, modes
 
-        rng = np.random.default_rng(self.seed)
-        self.classes_ = classes
-        self.n_modes_ = int(classes.size)
-        self.d_in_, self.d_out_ = d_in, d_out
-        self.x_mean_ = X.mean(axis=0)
-        self.x_std_ = np.where(X.std(axis=0) > 1e-12, X.std(axis=0), 1.0)
-
-        # --- mode classifier (multi-class SVC, one-vs-one, on standardised inputs)
+    def _fit_classifier(
+        self,
+        X: np.ndarray,
+        modes: np.ndarray,
+        counts: np.ndarray,
+        rng: np.random.Generator,
+        classifier: ModalGPDynamics | None,
+    ) -> None:
+        """The multi-class SVC (one-vs-one, on standardised inputs) on a per-mode subsample,
+        or ``classifier``'s; the subsample is drawn either way (same GP draws after it)."""
         self.svc_: SVC | None = None
-        if self.n_modes_ > 1:
-            share = self.max_points_classifier / n
-            sel = [
-                self._subsample(
-                    np.flatnonzero(modes == c),
-                    max(int(np.ceil(share * cnt)), min(int(cnt), 10)),
-                    rng,
-                )
-                for c, cnt in zip(classes, counts, strict=True)
-            ]
-            if classifier is not None:
-                self.svc_ = self._shared_svc(classifier)
-            else:
-                idx = np.concatenate(sel)
-                self.svc_ = SVC(kernel="rbf", C=self.svc_c, gamma="scale")
-                self.svc_.fit((X[idx] - self.x_mean_) / self.x_std_, modes[idx])
+        if self.n_modes_ == 1:
+            return
+        share = self.max_points_classifier / X.shape[0]
+        sel = [
+            self._subsample(
+                np.flatnonzero(modes == c), max(int(np.ceil(share * cnt)), min(int(cnt), 10)), rng
+            )
+            for c, cnt in zip(self.classes_, counts, strict=True)
+        ]
+        if classifier is not None:
+            self.svc_ = self._shared_svc(classifier)
+        else:
+            idx = np.concatenate(sel)
+            self.svc_ = SVC(kernel="rbf", C=self.svc_c, gamma="scale")
+            self.svc_.fit((X[idx] - self.x_mean_) / self.x_std_, modes[idx])
 
-        # --- per-mode GPs
-        target = Y - X[:, :d_out] if self.predict_delta else Y
-        self.gps_: list[list[FastGPR]] = []
-        self.gp_x_mean_: list[np.ndarray] = []
-        self.gp_x_std_: list[np.ndarray] = []
-        self.n_fit_warnings_ = 0
-        for c in classes:
-            idx = self._subsample(np.flatnonzero(modes == c), self.max_points_per_mode, rng)
-            xm = X[idx].mean(axis=0)
-            xs = X[idx].std(axis=0)
-            xs = np.where(xs > 1e-12, xs, 1.0)
-            xz = (X[idx] - xm) / xs
-            cols = [[j] for j in range(d_out)] if self.independent_outputs else [list(range(d_out))]
-            gps = []
-            for col in cols:
-                gp = FastGPR(
-                    kernel=self._kernel(d_in),
-                    optimizer=self._optimizer,
-                    normalize_y=True,
-                    n_restarts_optimizer=self.n_restarts,
-                    random_state=int(rng.integers(2**31 - 1)),
-                )
-                y = target[idx][:, col]
-                with warnings.catch_warnings(record=True) as caught:
-                    warnings.simplefilter("always", ConvergenceWarning)
-                    gp.fit(xz, y[:, 0] if len(col) == 1 else y)
-                self.n_fit_warnings_ += sum(
-                    issubclass(w.category, ConvergenceWarning) for w in caught
-                )
-                gps.append(gp)
-            self.gps_.append(gps)
-            self.gp_x_mean_.append(xm)
-            self.gp_x_std_.append(xs)
-        self.fit_time_s_ = time.perf_counter() - t0
-        return self
+    def _fit_mode(self, x: np.ndarray, target: np.ndarray, rng: np.random.Generator) -> None:
+        """One mode's GPs on its subsample: inputs standardised per mode, one GP per output
+        column (``independent_outputs``) or one for all; convergence warnings counted."""
+        d_in, d_out = x.shape[1], target.shape[1]
+        xm = x.mean(axis=0)
+        xs = x.std(axis=0)
+        xs = np.where(xs > 1e-12, xs, 1.0)
+        xz = (x - xm) / xs
+        cols = [[j] for j in range(d_out)] if self.independent_outputs else [list(range(d_out))]
+        gps = []
+        for col in cols:
+            gp = FastGPR(
+                kernel=self._kernel(d_in),
+                optimizer=self._optimizer,
+                normalize_y=True,
+                n_restarts_optimizer=self.n_restarts,
+                random_state=int(rng.integers(2**31 - 1)),
+            )
+            y = target[:, col]
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", ConvergenceWarning)
+                gp.fit(xz, y[:, 0] if len(col) == 1 else y)
+            self.n_fit_warnings_ += sum(issubclass(w.category, ConvergenceWarning) for w in caught)
+            gps.append(gp)
+        self.gps_.append(gps)
+        self.gp_x_mean_.append(xm)
+        self.gp_x_std_.append(xs)
 
     def _shared_svc(self, other: ModalGPDynamics) -> SVC | None:
         """``other``'s SVC, after checking it was fitted on the same inputs and modes."""
