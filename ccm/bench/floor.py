@@ -18,10 +18,16 @@ it did comes from its own files, never from typed-in counts (:func:`run_work`):
 
 The engine's cost per physics step and per reset is measured now, in this process, on each
 distinct scene of the run's config (:func:`ccm.bench.engines.raw_cpu_per_step`,
-:func:`ccm.bench.engines.raw_reset_cpu`; CPU time). The floor of a sweep is
-steps × µs/step + resets × reset + mpc + fits; :func:`print_floor` sets it beside the sweep's
-recorded CPU time (``paper_timing.json``). The wall-clock floor on ``cores`` cores is the
-larger of the total over the cores and the longest single run (a run is one process).
+:func:`ccm.bench.engines.raw_reset_cpu`; CPU time). A condition that overrides the scene
+(stiffer walls, other frictions) and ``gp_contact_models``, which builds its own compliant
+wall, are costed on the run's base scene: the raw loop of one pymunk body or one Panda barely
+depends on those values. Left out, because they are not the engines' cost: process start,
+config composition, metrics, figures and files, and the controllers' own arithmetic.
+
+The floor of a sweep is steps × µs/step + resets × reset + mpc + fits; :func:`print_floor`
+sets it beside the sweep's recorded CPU time (``paper_timing.json``). The wall-clock floor on
+``cores`` cores is the larger of the total over the cores and the longest single run (a run
+is one process).
 """
 
 from __future__ import annotations
