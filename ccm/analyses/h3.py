@@ -57,7 +57,7 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig
 
-from ccm.analyses.h3_data import collect, load_dataset, save_dataset
+from ccm.analyses.h3_data import collect, load_dataset, save_dataset, trial_duration_s
 from ccm.analyses.h3_scores import Y, along_latest, gp_force_scores, joint_scores, norm_force_scores
 from ccm.core.errors import ConfigError, check_bool, check_int_positive, config_block
 from ccm.core.records import write_json_atomic
@@ -88,19 +88,43 @@ def _settings(cfg: DictConfig) -> dict[str, Any]:
     return h3
 
 
-def _datasets(h3: Mapping[str, Any], cfg: DictConfig, compose: Callable, out_dir: Path) -> dict:
-    """The five datasets of the module docstring: recorded now, or read from ``data_from``;
-    written to ``data/*.npz`` only with ``save_data`` (600 MB for five seeds)."""
-    specs = {
-        "medium_multi": ("medium", h3["train_frictions"], h3["trials_per_friction"]),
+def _dataset_specs(h3: Mapping[str, Any]) -> dict[str, tuple[str, list, int]]:
+    """The five datasets: (controller, wall frictions, trials per friction) by name."""
+    return {
+        "medium_multi": ("medium", list(h3["train_frictions"]), h3["trials_per_friction"]),
         "medium_single": ("medium", [h3["single_friction"]], h3["single_trials"]),
-        "high_multi": ("high", h3["train_frictions"], h3["trials_per_friction"]),
+        "high_multi": ("high", list(h3["train_frictions"]), h3["trials_per_friction"]),
         "medium_test": ("medium", [h3["test_friction"]], h3["test_trials"]),
         "high_test": ("high", [h3["test_friction"]], h3["test_trials"]),
     }
+
+
+def collection_plan(cfg: DictConfig, pattern_s: float) -> tuple[int, float]:
+    """(trials, simulated seconds per trial) that :func:`_datasets` records for ``cfg``, whose
+    ``table_wall`` pattern lasts ``pattern_s``: the reused sets record nothing (``data_from``;
+    ``medium_single`` inside ``medium_multi``, as :func:`_single_friction_subset` finds it).
+    For ``make bench``'s paper floor, which has the run's config but not its data."""
+    h3 = _settings(cfg)
+    if h3.get("data_from"):
+        return 0, 0.0
+    mu = float(h3["single_friction"])
+    reused = h3["trials_per_friction"] >= h3["single_trials"] and any(
+        float(f) == mu for f in h3["train_frictions"]
+    )
+    trials = sum(
+        len(frictions) * n
+        for name, (_, frictions, n) in _dataset_specs(h3).items()
+        if not (name == "medium_single" and reused)
+    )
+    return trials, trial_duration_s(pattern_s, max_time_s=h3.get("max_time_s"))
+
+
+def _datasets(h3: Mapping[str, Any], cfg: DictConfig, compose: Callable, out_dir: Path) -> dict:
+    """The five datasets of the module docstring: recorded now, or read from ``data_from``;
+    written to ``data/*.npz`` only with ``save_data`` (600 MB for five seeds)."""
     out = {}
     first = 1
-    for name, (ctl, frictions, n) in specs.items():
+    for name, (ctl, frictions, n) in _dataset_specs(h3).items():
         path = out_dir / "data" / f"{name}.npz"
         save = save_dataset if h3["save_data"] else _discard
         if h3.get("data_from"):

@@ -33,6 +33,7 @@ from ccm.experiment.runner import build_components, run_trial, trial_seed
 
 FIELDS = ("t", "q", "dq", "position", "velocity", "force", "mode", "wall_friction")
 WALL_FRICTION = "task.scene.boxes.0.friction"  # the one field H3 varies (table_wall.yaml)
+SETTLE_TIME_S = 0.5  # s simulated after the pattern ends (chosen: the runner's settle_time_s)
 CONTACT_N = 0.5  # N of true normal force that labels a surface touched (chosen: 10x the F/T
 #                  noise; only the training labels use it, never a controller)
 
@@ -66,13 +67,22 @@ def record_trial(comp: Any, seed: int, duration_s: float) -> dict[str, np.ndarra
     }
 
 
+def trial_duration_s(
+    pattern_s: float, settle_time_s: float = SETTLE_TIME_S, max_time_s: float | None = None
+) -> float:
+    """Simulated seconds of one recorded trial: the pattern, then ``settle_time_s``, truncated
+    at ``max_time_s`` when given."""
+    duration = pattern_s + settle_time_s
+    return duration if max_time_s is None else min(duration, max_time_s)
+
+
 def collect(
     compose: Callable[[Sequence[str]], DictConfig],
     overrides: Sequence[str],
     frictions: Sequence[float],
     trials_per_friction: int,
     seed: int,
-    settle_time_s: float = 0.5,
+    settle_time_s: float = SETTLE_TIME_S,
     first_trial: int = 1,
     max_time_s: float | None = None,
 ) -> list[dict[str, np.ndarray]]:
@@ -102,9 +112,7 @@ def collect(
         comp = build_components(compose([*overrides, f"{WALL_FRICTION}={mu}"]))
         try:
             for _ in range(n):
-                duration = comp.task.pattern.duration + settle_time_s
-                if max_time_s is not None:
-                    duration = min(duration, max_time_s)
+                duration = trial_duration_s(comp.task.pattern.duration, settle_time_s, max_time_s)
                 out.append(record_trial(comp, trial_seed(seed, k), duration))
                 k += 1
         finally:

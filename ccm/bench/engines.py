@@ -19,11 +19,16 @@ timing starts (P's own cost is ccm's, not the engine's).
   ``setJointMotorControlArray(TORQUE_CONTROL)`` and ``stepSimulation``.
 
 Both run on the simulator ccm built for the row, after a reset, through its engine handles.
+:func:`raw_loop` gives a row's wall time; :func:`raw_cpu_per_step` and :func:`raw_reset_cpu`
+give the CPU cost per physics step and per PyBullet reset that the paper floor
+(:mod:`ccm.bench.floor`) multiplies by a paper run's recorded work.
 """
 
 from __future__ import annotations
 
+import statistics
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -40,18 +45,68 @@ def raw_loop(sim: Any, pattern: Any, control_steps: int, seed: int = 0) -> float
     """Wall time [s] of ``control_steps`` control steps of the minimal loop for ``sim``'s
     engine following ``pattern`` (module docstring), after ``sim.reset(seed)`` (not timed)."""
     obs, _ = sim.reset(seed=seed)
-    t = obs.t + sim.control_dt * np.arange(control_steps)
-    targets = [tuple(pattern.sample(tk).position) for tk in t]
+    return _engine_loop(sim)(sim, _targets(sim, pattern, obs.t, control_steps), time.perf_counter)
+
+
+def raw_cpu_per_step(sim: Any, pattern: Any, budget_s: float = 1.5, seed: int = 0) -> float:
+    """CPU seconds per *physics* step of the minimal loop for ``sim``'s engine (module
+    docstring), in whole passes over ``pattern``'s duration until ``budget_s`` of CPU time is
+    spent; each pass starts from ``sim.reset(seed)`` (not timed), the targets are sampled once.
+    CPU time (``time.process_time``), so that it compares with a sweep's recorded CPU time."""
+    obs, _ = sim.reset(seed=seed)
+    steps = max(1, int(pattern.duration / sim.control_dt))
+    targets = _targets(sim, pattern, obs.t, steps)
+    loop = _engine_loop(sim)
+    spent, passes = 0.0, 0
+    while spent < budget_s:
+        if passes:
+            sim.reset(seed=seed)
+        spent += loop(sim, targets, time.process_time)
+        passes += 1
+    return spent / (passes * steps * sim.control_decimation)
+
+
+def raw_reset_cpu(sim: Any, repeats: int = 3) -> float:
+    """Median CPU seconds of what a PyBullet trial's reset asks of the engine:
+    ``resetSimulation`` and ``loadURDF`` of the Panda with ccm's tool (the URDF ccm loads,
+    written once beforehand); 0.0 for pymunk, whose reset builds a few shapes."""
+    if not hasattr(sim, "_robot"):
+        return 0.0
+    import tempfile
+
+    from ccm.sim.pybullet.robot import robot_urdf
+
+    sim.reset(seed=0)
+    p, cid = sim._p, sim._client
+    with tempfile.TemporaryDirectory(prefix="ccm_bench_") as tmp:
+        urdf = robot_urdf(sim.config.tool, tmp, visuals=sim.config.gui)
+        cpu = []
+        for _ in range(repeats):
+            t0 = time.process_time()
+            p.resetSimulation(physicsClientId=cid)
+            p.loadURDF(urdf, [0, 0, 0], useFixedBase=True, physicsClientId=cid)
+            cpu.append(time.process_time() - t0)
+    sim.reset(seed=0)  # the simulator's own world again
+    return statistics.median(cpu)
+
+
+def _targets(sim: Any, pattern: Any, t0: float, control_steps: int) -> list[tuple[float, ...]]:
+    """The pattern's positions at the control steps from ``t0`` (sampled before timing)."""
+    t = t0 + sim.control_dt * np.arange(control_steps)
+    return [tuple(pattern.sample(tk).position) for tk in t]
+
+
+def _engine_loop(sim: Any) -> Callable[..., float]:
     if hasattr(sim, "_space"):
-        return _pymunk(sim, targets)
+        return _pymunk
     if hasattr(sim, "_robot"):
-        return _pybullet(sim, targets)
+        return _pybullet
     raise TypeError(f"no raw loop for {type(sim).__name__}")
 
 
-def _pymunk(sim: Any, targets: list[tuple[float, ...]]) -> float:
+def _pymunk(sim: Any, targets: list[tuple[float, ...]], clock: Callable[[], float]) -> float:
     body, space, dt, hold = sim._body, sim._space, sim.dt, sim.control_decimation
-    t0 = time.perf_counter()
+    t0 = clock()
     x, y = body.position
     vx, vy = body.velocity
     for tx, ty in targets:
@@ -60,14 +115,14 @@ def _pymunk(sim: Any, targets: list[tuple[float, ...]]) -> float:
             space.step(dt)
             x, y = body.position
             vx, vy = body.velocity
-    return time.perf_counter() - t0
+    return clock() - t0
 
 
-def _pybullet(sim: Any, targets: list[tuple[float, ...]]) -> float:
+def _pybullet(sim: Any, targets: list[tuple[float, ...]], clock: Callable[[], float]) -> float:
     p, cid, robot, arm = sim._p, sim._client, sim._robot, sim._arm
     link, tip, hold = sim._tool_link, list(sim._tip_link), sim.control_decimation
     zeros = [0.0] * len(arm)
-    t0 = time.perf_counter()
+    t0 = clock()
     for tx, ty, tz in targets:
         for _ in range(hold):
             states = p.getJointStates(robot, arm, physicsClientId=cid)
@@ -88,4 +143,4 @@ def _pybullet(sim: Any, targets: list[tuple[float, ...]]) -> float:
                 robot, arm, p.TORQUE_CONTROL, forces=tau, physicsClientId=cid
             )
             p.stepSimulation(physicsClientId=cid)
-    return time.perf_counter() - t0
+    return clock() - t0

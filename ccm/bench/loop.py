@@ -179,6 +179,10 @@ def _parser() -> argparse.ArgumentParser:
         "--paper-dir", type=Path, default=Path("outputs/paper"),
         help="the make reproduce-paper output whose paper_timing.json gives CPU-minutes",
     )  # fmt: skip
+    parser.add_argument(
+        "--no-floor", action="store_true",
+        help="skip the paper floor (the raw engine loop on each paper scene, ~1 min)",
+    )  # fmt: skip
     return parser
 
 
@@ -206,6 +210,7 @@ def print_torques(res: dict[str, Any]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """``make bench``: every section, printed as it finishes, then ``--out`` as JSON."""
+    from ccm.bench.floor import paper_floor, print_floor
     from ccm.bench.h3 import bench_h3, print_h3
     from ccm.bench.igmm import bench_learning, print_learning
     from ccm.bench.mpc import bench_mpc, print_mpc
@@ -233,6 +238,9 @@ def main(argv: list[str] | None = None) -> int:
         print_h3(result["h3_long_horizon"])
     result["paper"] = paper_cpu(args.paper_dir)
     print_paper_cpu(result["paper"], args.paper_dir)
+    result["paper_floor"] = None if args.no_floor else paper_floor(args.paper_dir)
+    if not args.no_floor:
+        print_floor(result["paper_floor"], args.paper_dir)
     args.out.write_text(json.dumps(result, indent=2, default=str) + "\n", encoding="utf-8")
     print(f"wrote {args.out}")
     return 0

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ccm.control.base import Controller
+from ccm.control.baselines._mrac_kernels import mrac_kernel
 from ccm.control.loop import HybridLoop
 from ccm.core.errors import ConfigError, check_finite, check_nonneg, check_positive
 from ccm.core.types import Command, Observation, TargetSample
@@ -109,6 +110,10 @@ class MRAC(Controller):
             is off unless the block turns it on).
     """
 
+    #: off force segments, step through :func:`ccm.control.baselines._mrac_kernels.mrac_kernel`
+    #: (False: the numpy lines of ``_adapt``, ``_stats`` and ``_advance``; tests compare them)
+    compiled = True
+
     def __init__(
         self,
         omega: float | list[float] = 1.5,
@@ -161,13 +166,16 @@ class MRAC(Controller):
         g = np.array(
             [reference_model_discrete(w, z, control_dt) for w, z in zip(omega, zeta, strict=True)]
         )  # (dim, 2, 3)
-        self._g = [g[:, i, j].copy() for i in range(2) for j in range(3)]
+        self._g = np.array([g[:, i, j] for i in range(2) for j in range(3)])  # (6, dim)
         self.x_m = np.zeros(dim)
         self.v_m = np.zeros(dim)
         self._started = False
-        self._int_q = np.zeros(dim)
-        self._int_qe = np.zeros(dim)
-        self._int_qv = np.zeros(dim)
+        self._ints = np.zeros((3, dim))  # rows: ∫q, ∫q e, ∫q ė (views below)
+        self._int_q, self._int_qe, self._int_qv = self._ints
+        self._gains = np.array([
+            self.w_p, self.w_v, control_dt, self.f0, *self.alpha, *self.beta, *self.gamma,
+            self.kp0, self.kv0,
+        ])  # fmt: skip
         self.f = np.full(dim, self.f0)
         self.kp = np.full(dim, self.kp0)
         self.kv = np.full(dim, self.kv0)
@@ -187,27 +195,24 @@ class MRAC(Controller):
         }
 
     def step(self, obs: Observation, target: TargetSample) -> Command:
-        """One control step of the MRAC law (see the class docstring for the equations)."""
+        """One control step of the MRAC law (see the class docstring for the equations).
+        Off force segments the arithmetic of ``_adapt``, ``_stats`` and ``_advance`` runs as
+        one compiled call (:mod:`ccm.control.baselines._mrac_kernels`), unless ``compiled``
+        is False."""
         if not self._started:
             self.x_m = obs.position.astype(float).copy()
             self.v_m = obs.lin_vel.astype(float).copy()
             self._started = True
-        r = target.position
-        a_m = self._omega2 * (r - self.x_m) - self._two_zeta_omega * self.v_m
-        e = self.x_m - obs.position
-        ed = self.v_m - obs.lin_vel
-        d = target.force_dir
-        if d is not None:  # adapt on the motion subspace only
-            e = e - d * float(d @ e)
-            ed = ed - d * float(d @ ed)
-        q = self.w_p * e + self.w_v * ed
-        dt = self.control_dt
-        self._int_q += q * dt
-        self._int_qe += q * e * dt
-        self._int_qv += q * ed * dt
-        self.f = self.f0 + self.alpha[0] * self._int_q + self.alpha[1] * q
-        self.kp = self.kp0 + self.beta[0] * self._int_qe + self.beta[1] * q * e
-        self.kv = self.kv0 + self.gamma[0] * self._int_qv + self.gamma[1] * q * ed
+        r, d = target.position, target.force_dir
+        if d is None and self.compiled:
+            a_m, self.f, self.kp, self.kv, x_next, v_next, stats = mrac_kernel(
+                obs.position, obs.lin_vel, r, self.x_m, self.v_m, self._omega2,
+                self._two_zeta_omega, self._gains, self._ints, self._g,
+            )  # fmt: skip
+        else:
+            a_m = self._adapt(obs, r, d)
+            stats = self._stats(obs, r)
+            x_next, v_next = self._advance(r)
         ref = TargetSample(
             t=target.t,
             position=self.x_m,
@@ -224,21 +229,52 @@ class MRAC(Controller):
         force = u_motion + f + u_force
         hyb = self.loop.signals()
         s = self._signals
-        s["stiffness_Npm"] = float(np.mean(self.kp)) + self._kp_hidden
-        s["damping_Nspm"] = float(np.mean(self.kv)) + self._kv_hidden
-        s["adaptive_kp_Npm"] = float(np.mean(self.kp))
-        s["adaptive_kv_Nspm"] = float(np.mean(self.kv))
-        s["adaptive_force_N"] = float(np.linalg.norm(self.f))
-        s["ref_error_m"] = float(np.linalg.norm(self.x_m - obs.position))
-        s["ref_lag_m"] = float(np.linalg.norm(r - self.x_m))
+        kp_mean, kv_mean, s["adaptive_force_N"], s["ref_error_m"], s["ref_lag_m"] = stats
+        s["stiffness_Npm"] = kp_mean + self._kp_hidden
+        s["damping_Nspm"] = kv_mean + self._kv_hidden
+        s["adaptive_kp_Npm"] = kp_mean
+        s["adaptive_kv_Nspm"] = kv_mean
         s["force_error_N"] = hyb["force_error_N"]
         s["force_control"] = hyb["force_control"]
-        # advance the reference model to the next control step (exact ZOH on r)
+        # the reference model at the next control step (exact ZOH on r)
+        self.x_m, self.v_m = x_next, v_next
+        return Command(force=force, torque=self.loop.rotation_torque(obs, target))
+
+    def _adapt(self, obs: Observation, r: np.ndarray, d: np.ndarray | None) -> np.ndarray:
+        """Model-following errors, the integrals and the adapted f, K_p, K_v (set in place);
+        returns the reference model's acceleration a_m."""
+        a_m = self._omega2 * (r - self.x_m) - self._two_zeta_omega * self.v_m
+        e = self.x_m - obs.position
+        ed = self.v_m - obs.lin_vel
+        if d is not None:  # adapt on the motion subspace only
+            e = e - d * float(d @ e)
+            ed = ed - d * float(d @ ed)
+        q = self.w_p * e + self.w_v * ed
+        dt = self.control_dt
+        self._int_q += q * dt
+        self._int_qe += q * e * dt
+        self._int_qv += q * ed * dt
+        self.f = self.f0 + self.alpha[0] * self._int_q + self.alpha[1] * q
+        self.kp = self.kp0 + self.beta[0] * self._int_qe + self.beta[1] * q * e
+        self.kv = self.kv0 + self.gamma[0] * self._int_qv + self.gamma[1] * q * ed
+        return a_m
+
+    def _stats(self, obs: Observation, r: np.ndarray) -> tuple[float, ...]:
+        """(mean K_p, mean K_v, |f|, |x_m − x|, |r − x_m|) for the signals."""
+        return (
+            float(np.mean(self.kp)),
+            float(np.mean(self.kv)),
+            float(np.linalg.norm(self.f)),
+            float(np.linalg.norm(self.x_m - obs.position)),
+            float(np.linalg.norm(r - self.x_m)),
+        )
+
+    def _advance(self, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x_m, ẋ_m) one control period later, with r held (exact ZOH)."""
         g00, g01, g02, g10, g11, g12 = self._g
         x_next = g00 * self.x_m + g01 * self.v_m + g02 * r
-        self.v_m = g10 * self.x_m + g11 * self.v_m + g12 * r
-        self.x_m = x_next
-        return Command(force=force, torque=self.loop.rotation_torque(obs, target))
+        v_next = g10 * self.x_m + g11 * self.v_m + g12 * r
+        return x_next, v_next
 
     def signals(self) -> dict[str, float]:
         """``stiffness_Npm``/``damping_Nspm`` effective gains (class docstring), ``adaptive_kp_Npm``
