@@ -98,6 +98,10 @@ __all__ = [
 ]  # fmt: skip
 
 
+#: ``StepInfo.extra`` keys of the arm's joint angles [rad], recorded as ``truth_q1_rad`` ...
+_JOINT_KEYS = tuple(f"q{i}_rad" for i in range(1, N_ARM + 1))
+
+
 # --------------------------------------------------------------------------- simulator
 
 
@@ -551,6 +555,8 @@ class PyBullet3D(Simulator):
                 "normal_force_x": float(split[3]),
                 "normal_force_y": float(split[4]),
                 "normal_force_z": float(split[5]),
+                # the arm's joint angles [rad] (q1_rad ... q7_rad): what `ccm animate` replays
+                **dict(zip(_JOINT_KEYS, self._joint_state()[0].tolist(), strict=True)),
             },
         )
         return obs, info
