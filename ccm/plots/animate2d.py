@@ -166,17 +166,13 @@ def _legend(ax: Any, scene: SceneSpec, scale: float) -> None:
     ax.legend(handles=items, loc="upper right", fontsize=7, framealpha=0.85)
 
 
-def frames_2d(
-    log: Mapping[str, np.ndarray],
-    scene: SceneSpec,
-    settings: AnimateSettings,
-    labels: Mapping[str, Any],
-) -> Iterator[np.ndarray]:
-    """RGB frames (height x width x 3, uint8) of one recorded 2D trial (module docstring);
-    ``labels``: ``phase`` and ``segments`` (the pattern's segment names) for the overlay."""
+def _figure(
+    log: Mapping[str, np.ndarray], scene: SceneSpec, settings: AnimateSettings
+) -> tuple[Any, Any, float]:
+    """The figure with the static scene, axes and legend drawn; returns (figure, its Agg
+    canvas, force scale [N per m])."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    from matplotlib.patches import FancyArrowPatch, Rectangle
 
     fig = Figure(figsize=(settings.width / _DPI, settings.height / _DPI), dpi=_DPI)
     canvas = FigureCanvasAgg(fig)
@@ -188,17 +184,37 @@ def frames_2d(
     _draw_scene(ax, scene, xlim)
     scale = force_scale(log, xlim[1] - xlim[0], settings)
     _legend(ax, scene, scale)
+    return fig, canvas, scale
+
+
+def frames_2d(
+    log: Mapping[str, np.ndarray],
+    scene: SceneSpec,
+    settings: AnimateSettings,
+    labels: Mapping[str, Any],
+) -> Iterator[np.ndarray]:
+    """RGB frames (height x width x 3, uint8) of one recorded 2D trial (module docstring);
+    ``labels``: ``phase`` and ``segments`` (the pattern's segment names) for the overlay.
+    The static figure is drawn once; each frame restores it and draws the moving artists
+    on it (blitting: ~5x faster than redrawing the figure)."""
+    from matplotlib.patches import FancyArrowPatch, Rectangle
+
+    fig, canvas, scale = _figure(log, scene, settings)
+    ax = fig.axes[0]
     w, h = scene.ee.size
-    tool = ax.add_patch(Rectangle((0, 0), w, h, color=_TOOL, alpha=0.85, zorder=4))
-    (trail,) = ax.plot([], [], color=_TOOL, lw=1, alpha=0.6, zorder=3)
-    (target,) = ax.plot([], [], "x", color=_TARGET, ms=9, mew=2, zorder=5)
-    springs = [ax.plot([], [], ":", color="0.3", lw=1.2, zorder=3)[0] for _ in scene.springs]
+    (trail,) = ax.plot([], [], color=_TOOL, lw=1, alpha=0.6)
+    springs = [ax.plot([], [], ":", color="0.3", lw=1.2)[0] for _ in scene.springs]
+    tool = ax.add_patch(Rectangle((0, 0), w, h, color=_TOOL, alpha=0.85))
+    (target,) = ax.plot([], [], "x", color=_TARGET, ms=9, mew=2)
     arrow = ax.add_patch(
-        FancyArrowPatch(
-            (0, 0), (0, 0), arrowstyle="-|>", mutation_scale=14, color=_FORCE, lw=2, zorder=6
-        )
+        FancyArrowPatch((0, 0), (0, 0), arrowstyle="-|>", mutation_scale=14, color=_FORCE, lw=2)
     )
     text = fig.text(0.01, 0.965, "", fontsize=9, family="monospace", va="top")
+    moving = [trail, *springs, tool, target, arrow]  # drawn in this order, over the scene
+    for artist in [*moving, text]:
+        artist.set_animated(True)
+    canvas.draw()
+    background = canvas.copy_from_bbox(fig.bbox)
     for k in frame_steps(log["t"], settings.fps):
         x, y = float(log["pos_x"][k]), float(log["pos_y"][k])
         tool.set_xy((x - w / 2, y - h / 2))
@@ -211,5 +227,8 @@ def frames_2d(
         f = np.array([log["force_x"][k], log["force_y"][k]], dtype=float) / scale
         arrow.set_positions((x, y), (x + f[0], y + f[1]))
         text.set_text(overlay_text(log, k, labels))
-        canvas.draw()
+        canvas.restore_region(background)
+        for artist in moving:
+            ax.draw_artist(artist)
+        fig.draw_artist(text)
         yield np.asarray(canvas.buffer_rgba())[:, :, :3].copy()
