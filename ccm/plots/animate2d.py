@@ -20,7 +20,7 @@ from ccm.sim.pymunk.scene import SceneSpec
 
 _TOOL, _TARGET, _FORCE, _PATCH = "tab:orange", "tab:green", "tab:red", "tab:blue"
 _DPI = 100
-_AXES = (0.1, 0.1, 0.87, 0.8)  # the axes' box in the figure (left, bottom, width, height)
+_AXES = (0.12, 0.1, 0.85, 0.8)  # the axes' box in the figure (left, bottom, width, height)
 
 
 def scene_points(scene: SceneSpec) -> list[tuple[float, float]]:
