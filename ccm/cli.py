@@ -42,6 +42,9 @@ commands:
   paper [--quick]       every paper experiment over its seeds (2 sweeps at a time), then
                         report (make reproduce-paper); --out DIR, --lanes N, names to select,
                         --force to start over (earlier records moved aside, not resumed)
+  animate RUN_DIR       a clip of one recorded trial (MP4 with ffmpeg, else GIF), replayed
+                        from its time series: --condition C (default the first), --trial N
+                        (default the last recorded), --out FILE, --fps F
   --help, -h            this message; `ccm run --help` shows Hydra's help and the config
   --version             print the version
 
@@ -466,17 +469,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         return cmd_list(argv[1:])
     if argv[0] == "run":
         return cmd_run(argv[1:])
-    if argv[0] in ("report", "paper"):
+    if argv[0] in ("report", "paper", "animate"):
         from ccm.core.errors import ConfigError
+        from ccm.plots.animate import main as animate
         from ccm.reporting.paper import main as paper
         from ccm.reporting.report import main as report
 
         try:
-            return (report if argv[0] == "report" else paper)(argv[1:])
+            return {"report": report, "paper": paper, "animate": animate}[argv[0]](argv[1:])
         except ConfigError as exc:
             return _fail(str(exc), EXIT_CONFIG)
     return _fail(
-        f"unknown command {argv[0]!r}; allowed: run, list, report, paper, --help", EXIT_CONFIG
+        f"unknown command {argv[0]!r}; allowed: run, list, report, paper, animate, --help",
+        EXIT_CONFIG,
     )
 
 

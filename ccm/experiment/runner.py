@@ -57,6 +57,7 @@ from ccm.metrics.trial import (
     condition_summary,
     trial_metrics,
 )
+from ccm.plots import animate
 from ccm.sim import BACKENDS, backend, make_sim
 from ccm.sim.base import Simulator, check_state_finite
 from ccm.tasks.task import Task, load_task
@@ -259,6 +260,7 @@ def check_experiment(cfg: DictConfig) -> dict[str, Any]:
         "max_retime_s": check_nonneg("experiment.max_retime_s", exp.get("max_retime_s", 60.0)),
         "timeseries": check_mode(exp.get("timeseries", "first_last")),
         "timeseries_bits": check_bits(exp.get("timeseries_bits", FLOAT32_BITS)),
+        "animate": animate.check_config(cfg),  # experiment.animate and the animate block
     }
 
 
@@ -436,6 +438,10 @@ def run_experiment(
     save_learned_states(out_dir, plan, done)
     info = {"wall_time_s": (wall := time.perf_counter() - wall0), "sim_time_s": sim_time,
             "realtime_factor": sim_time / wall, **timing.info()}  # fmt: skip
+    if settings["animate"] == "first_last":  # clips of each condition's first and last trial
+        wall0 = time.perf_counter()
+        animate.write_animations(out_dir, cfg, plan, logs, trials_out)
+        info["animate_wall_s"] = time.perf_counter() - wall0
     return _write_run(cfg, out_dir, plan, logs, settings, trials_out, info)
 
 

@@ -14,6 +14,7 @@ experiment
 * **Metrics**: per experiment and condition, the mean ± 95 % CI over seeds of every numeric
   metric (pandas), in a collapsible table.
 * **Failures**: every run whose summary says ``failed``, with its cause.
+* **Animations**: the clips in the runs' ``animations/`` (:mod:`ccm.reporting.report_media`).
 
 The HTML is self-contained: figures are embedded as base64 PNG, no scripts, no external
 files. Both files are written atomically (temp file + rename).
@@ -35,6 +36,7 @@ from ccm.core.records import write_atomic
 from ccm.experiment.config_check import check_output_dir
 from ccm.reporting.claim_stats import t95
 from ccm.reporting.claims import Verdict, evaluate, load_claims
+from ccm.reporting.report_media import animations_section
 from ccm.reporting.report_screen import SetAside, screen, tally
 
 DEFAULT_CLAIMS = Path(__file__).resolve().parents[2] / "experiments" / "claims.yaml"
@@ -264,7 +266,7 @@ def render(
         ".reproduced{background:#d8f5d0}.partially{background:#fff2c2}"
         ".not.reproduced,.not-reproduced{background:#f8d0d0}.not-measured{background:#eee}"
         ".banner{background:#f8d0d0;border:2px solid #b00;padding:8px;font-weight:bold}"
-        "img{max-width:100%;height:auto;display:block;margin:4px 0}",
+        "img,video{max-width:100%;height:auto;display:block;margin:4px 0}",
         "</style></head><body>",
         "<h1>ccm report</h1>"
         + (
@@ -311,6 +313,9 @@ def render(
     else:
         md.append("None.")
         hb.append("<p>None.</p>")
+    anim_md, anim_html = animations_section(root, runs)  # clips, where the runs have them
+    md += anim_md
+    hb += anim_html
     md += ["", "## Metrics (mean ± 95 % CI over seeds)", ""]
     hb.append("<h2>Metrics (mean ± 95 % CI over seeds)</h2>")
     for exp, sub in table.groupby("experiment", sort=True):

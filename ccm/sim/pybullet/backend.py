@@ -98,6 +98,10 @@ __all__ = [
 ]  # fmt: skip
 
 
+#: ``StepInfo.extra`` keys of the arm's joint angles [rad], recorded as ``truth_q1_rad`` ...
+_JOINT_KEYS = tuple(f"q{i}_rad" for i in range(1, N_ARM + 1))
+
+
 # --------------------------------------------------------------------------- simulator
 
 
@@ -162,6 +166,8 @@ class PyBullet3D(Simulator):
         self._table_contacts: list[tuple[Any, float]] = []  # last step's (position, N)
         self._steps = 0
         self._rng: np.random.Generator | None = None
+        #: (q, q̇) read by _output after the last physics step, until the torque law uses it
+        self._read_joints: tuple[np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def from_config(
@@ -207,6 +213,7 @@ class PyBullet3D(Simulator):
         )
         self._body_friction = {}
         self._table_contacts = []
+        self._read_joints = None  # a new world: nothing read from it yet
         self._build_scene()
         self._robot, self._tool_link = load_robot(p, cid, self.config)
         self._tip_link = tool_point_in_link(p, cid, self._robot, self._tool_link, self._tip_local)
@@ -403,6 +410,12 @@ class PyBullet3D(Simulator):
         for offline learners that work in joint space (seed A §4.4.1); never an Observation."""
         return self._joint_state()
 
+    def _recorded_joints(self) -> np.ndarray:
+        """The joint angles after the last physics step, for the record; kept for the next
+        step's torque law, which would read the same state (one read, not two, per step)."""
+        self._read_joints = self._joint_state()
+        return self._read_joints[0]
+
     def _joint_state(self) -> tuple[np.ndarray, np.ndarray]:
         states = self._p.getJointStates(self._robot, self._arm, physicsClientId=self._client)
         q = np.array([s[0] for s in states])
@@ -437,7 +450,9 @@ class PyBullet3D(Simulator):
         """τ = Jᵀ W + h(q, q̇) − Jᵀ Λ J̇ q̇ + N τ₀ (module docstring): compiled on Pinocchio's
         terms (``sim.dynamics: pinocchio``), else :meth:`_torques_pybullet`."""
         cfg = self.config
-        q, dq = self._joint_state()
+        # the state _output read after the last physics step, if nothing has stepped since
+        q, dq = self._read_joints if self._read_joints is not None else self._joint_state()
+        self._read_joints = None
         if not all_finite(q, dq):
             raise SimulationDiverged(
                 f"non-finite joint state at t={self._steps * self.dt:.3f} s: q={q.tolist()}"
@@ -551,6 +566,8 @@ class PyBullet3D(Simulator):
                 "normal_force_x": float(split[3]),
                 "normal_force_y": float(split[4]),
                 "normal_force_z": float(split[5]),
+                # the arm's joint angles [rad] (q1_rad ... q7_rad): what `ccm animate` replays
+                **dict(zip(_JOINT_KEYS, self._recorded_joints().tolist(), strict=True)),
             },
         )
         return obs, info
