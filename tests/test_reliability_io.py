@@ -120,8 +120,9 @@ def _bool_fields() -> list[Any]:
             continue
         data = OmegaConf.to_container(OmegaConf.load(path))
         for key in _bool_keys(data):
-            full = key if group in (".", "experiment") else f"{group}.{key}"
-            pick = [] if group == "." else [f"{group}={path.stem}"]
+            full = key if group in (".", "experiment") else f"{group.replace('/', '.')}.{key}"
+            # a nested group (controller/loop) comes with its parent's default option
+            pick = [] if group == "." or "/" in group else [f"{group}={path.stem}"]
             three_d = data.get("dim") == 3 or path.stem == "pybullet3d"
             if three_d:
                 pick += ["sim=pybullet3d"] if group == "task" else ["task=table_wall"]
