@@ -184,8 +184,8 @@ def _check_combo(
     other than the seed, which changes no component); raise on bad input."""
     from hydra import compose
 
+    from ccm.experiment.components import check_experiment, plan_experiment
     from ccm.experiment.config_check import check_trial_steps
-    from ccm.experiment.runner import check_experiment, plan_experiment
     from ccm.metrics.trial import check_extra_metrics
 
     cfg = compose("config", overrides=[*combo, *user_configs.searchpath_override(dirs)])

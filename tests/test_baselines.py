@@ -22,7 +22,7 @@ from ccm.control.impedance import FixedImpedance
 from ccm.control.registry import make_controller
 from ccm.core.errors import ConfigError, to_plain
 from ccm.core.types import Observation, TargetSample
-from ccm.experiment.runner import Components, build_components
+from ccm.experiment.components import Components, build_components
 from ccm.sim.pymunk.backend import Pymunk2D
 from ccm.tasks.task import load_task
 

@@ -130,7 +130,7 @@ def test_raw_cpu_per_step_is_per_physics_step(
     import itertools
 
     import ccm.bench.engines as engines
-    from ccm.experiment.runner import build_components
+    from ccm.experiment.components import build_components
 
     comp = build_components(composer(["task=smoke", "sim.control_decimation=2"]))
     try:

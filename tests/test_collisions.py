@@ -303,7 +303,8 @@ def test_invalid_samples_name_their_key() -> None:
 
 def test_pybullet_press_slide_detects_the_table_touch_only(composer: Any) -> None:
     pytest.importorskip("pybullet")
-    from ccm.experiment.runner import build_components, run_trial
+    from ccm.experiment.components import build_components
+    from ccm.experiment.trial import run_trial
 
     cfg = composer(["sim=pybullet3d", "task=press_slide_3d", "controller=fixed_impedance_high"])
     comp = build_components(cfg)

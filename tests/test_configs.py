@@ -8,7 +8,7 @@ import pytest
 
 from ccm.analyses.dispatch import run as run_experiment
 from ccm.cli import GROUPS, config_dir, group_options
-from ccm.experiment.runner import check_experiment, plan_experiment
+from ccm.experiment.components import check_experiment, plan_experiment
 
 ALL_OPTIONS = [(g, o) for g in GROUPS for o in group_options(g)]
 

@@ -18,7 +18,7 @@ from ccm.control.adaptive.contact_regions import (
     speed_pieces,
     to_segment_end,
 )
-from ccm.experiment.runner import build_components, trial_seed
+from ccm.experiment.components import build_components, trial_seed
 from ccm.learn.contact.belief import ContactBelief
 
 EYE = np.eye(2)

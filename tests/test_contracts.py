@@ -17,7 +17,7 @@ import pytest
 from ccm.control.registry import make_controller
 from ccm.core.errors import to_plain
 from ccm.core.types import Command, Observation
-from ccm.experiment.runner import build_components
+from ccm.experiment.components import build_components
 from ccm.experiment.user_configs import group_options
 from ccm.sim import BACKENDS
 

@@ -19,7 +19,8 @@ import pytest
 
 from ccm.core.errors import ConfigError
 from ccm.core.types import Command, Observation, StepInfo
-from ccm.experiment.runner import build_components, run_trial
+from ccm.experiment.components import build_components
+from ccm.experiment.trial import run_trial
 from ccm.learn.contact.contacts import ContactMap
 from ccm.tasks.task import load_task
 

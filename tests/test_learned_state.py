@@ -18,8 +18,8 @@ from ccm.control.base import Controller
 from ccm.control.registry import make_controller
 from ccm.core.errors import ConfigError, to_plain
 from ccm.core.types import Observation, TargetSample
+from ccm.experiment.components import plan_experiment, save_learned_states
 from ccm.experiment.learned_state import STATE_FORMAT
-from ccm.experiment.runner import plan_experiment, save_learned_states
 
 Composer = Callable[[Sequence[str]], DictConfig]
 DOWN = np.array([0.0, -1.0])

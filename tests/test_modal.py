@@ -205,7 +205,8 @@ def test_bad_settings_name_the_key(modes: dict, key: str) -> None:
 
 def _closed_loop_metrics(composer, overrides: list[str], trials: int = 1) -> list[dict]:
     """Run ``trials`` full trials (modes kept across them) and return the mode metrics."""
-    from ccm.experiment.runner import build_components, run_trial
+    from ccm.experiment.components import build_components
+    from ccm.experiment.trial import run_trial
     from ccm.metrics.trial import compute_extra_metrics
 
     cfg = composer(["experiment=single", "controller=avic_modes", *overrides])

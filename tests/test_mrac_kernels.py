@@ -47,7 +47,7 @@ def test_compiled_mrac_equals_numpy_in_the_h1_loop(composer: Composer, controlle
     """H1's task and both MRAC configs (seed A Fig. 5: ω = 1.5 and 1.0), a whole trial."""
     from ccm.control.registry import make_controller
     from ccm.core.errors import to_plain
-    from ccm.experiment.runner import build_components
+    from ccm.experiment.components import build_components
 
     cfg = composer(["task=multi_spring", f"controller={controller}"])
     comp = build_components(cfg)

@@ -11,7 +11,7 @@ import pytest
 
 from ccm.core.protocols import ForwardModel, Metric, Pattern
 from ccm.core.types import TargetSample
-from ccm.experiment.runner import build_components
+from ccm.experiment.components import build_components
 from ccm.learn.mixtures.forward_model import FORWARD_MODELS, make_forward_model
 from ccm.metrics.trial import EXTRA_METRICS
 

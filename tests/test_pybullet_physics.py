@@ -447,7 +447,8 @@ def test_the_table_friction_ramps_across_the_tool_face(mode: str) -> None:
 def press_slide_trial(**sim_cfg: Any) -> tuple[dict[str, np.ndarray], float]:
     """A 2.5 s trial through ccm.experiment.runner with FixedImpedance: approach, press 10 N, slide
     15 cm across a patch. Returns the recorded arrays and the wall time [s]."""
-    from ccm.experiment.runner import Components, run_trial
+    from ccm.experiment.components import Components
+    from ccm.experiment.trial import run_trial
     from ccm.tasks.task import load_task
 
     down = {"direction": [0.0, 0.0, -1.0], "magnitude": 10.0}

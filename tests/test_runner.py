@@ -9,13 +9,13 @@ from pathlib import Path
 import pytest
 
 from ccm.core.errors import ConfigError
-from ccm.experiment.runner import (
+from ccm.experiment.components import (
     check_experiment,
     plan_experiment,
     resolve_conditions,
-    run_experiment,
     trial_seed,
 )
+from ccm.experiment.runner import run_experiment
 from ccm.metrics.trial import check_extra_metrics
 
 PHASES = (
@@ -111,7 +111,8 @@ def test_controller_prepare_sets_the_pattern_the_trial_follows(composer) -> None
     """``Controller.prepare`` may return a re-timed pattern (seed A §3.5.2): the runner samples
     it and lengthens the trial by the extra wall time; the default follows P as planned."""
     from ccm.control.impedance import FixedImpedance
-    from ccm.experiment.runner import build_components, run_trial
+    from ccm.experiment.components import build_components
+    from ccm.experiment.trial import run_trial
     from ccm.tasks.retiming import RetimedPattern, TimeWarp
 
     class HalfSpeed(FixedImpedance):

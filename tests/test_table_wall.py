@@ -24,7 +24,8 @@ from omegaconf import OmegaConf
 
 from ccm.core.timeseries import read_timeseries
 from ccm.core.types import Command, Observation, StepInfo
-from ccm.experiment.runner import build_components, run_trial
+from ccm.experiment.components import build_components
+from ccm.experiment.trial import run_trial
 
 pytest.importorskip("pybullet")
 

@@ -22,7 +22,8 @@ from ccm.core.timeseries import (
     trial_path,
     write_timeseries,
 )
-from ccm.experiment.runner import check_experiment, run_experiment
+from ccm.experiment.components import check_experiment
+from ccm.experiment.runner import run_experiment
 from ccm.plots.rail import write_rail_figure
 
 CCM = str(Path(sys.executable).parent / "ccm")

@@ -15,7 +15,8 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from ccm.experiment.runner import ANALYSIS_KINDS, ComposeFn, run_experiment
+from ccm.experiment.components import ANALYSIS_KINDS, ComposeFn
+from ccm.experiment.runner import run_experiment
 
 Analysis = Callable[[DictConfig, ComposeFn, Path], dict[str, Any]]
 
@@ -56,7 +57,7 @@ ANALYSES: dict[str, Callable[[], Analysis]] = {
     "forward_model_horizon": _forward_model_horizon,
 }
 assert set(ANALYSES) == set(ANALYSIS_KINDS), (
-    "ccm.experiment.runner.ANALYSIS_KINDS names these kinds"
+    "ccm.experiment.components.ANALYSIS_KINDS names these kinds"
 )
 
 

@@ -32,7 +32,8 @@ from omegaconf import DictConfig
 
 from ccm.core.errors import ConfigError, check_int_positive, check_range, config_block
 from ccm.core.records import write_json_atomic
-from ccm.experiment.runner import build_components, run_trial, trial_seed
+from ccm.experiment.components import build_components, trial_seed
+from ccm.experiment.trial import run_trial
 from ccm.learn.mixtures.forecast import horizon_steps
 from ccm.learn.mixtures.forward_model import N_STATE, make_forward_model
 from ccm.metrics.adaptation import skill

@@ -29,7 +29,8 @@ from omegaconf import DictConfig
 
 from ccm.core.errors import ConfigError, check_finite, check_int_positive
 from ccm.core.records import atomic_path
-from ccm.experiment.runner import build_components, run_trial, trial_seed
+from ccm.experiment.components import build_components, trial_seed
+from ccm.experiment.trial import run_trial
 
 FIELDS = ("t", "q", "dq", "position", "velocity", "force", "mode", "wall_friction")
 WALL_FRICTION = "task.scene.boxes.0.friction"  # the one field H3 varies (table_wall.yaml)
@@ -95,7 +96,7 @@ def collect(
         trials_per_friction: trials at each friction (the trials differ by their seeds: the
             sensor noise).
         seed: root seed; trial k (counted from ``first_trial`` over all frictions) uses
-            :func:`ccm.experiment.runner.trial_seed`.
+            :func:`ccm.experiment.components.trial_seed`.
         settle_time_s: simulated after the pattern ends [s].
         first_trial: number of the first trial (for its seed).
         max_time_s: truncate every trial (tests); None = the whole pattern.

@@ -13,7 +13,7 @@ def components(
     from hydra import compose, initialize_config_dir
 
     from ccm.cli import config_dir
-    from ccm.experiment.runner import build_components
+    from ccm.experiment.components import build_components
 
     with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="bench"):
         overrides = [f"task={task}", f"controller={controller}"]

@@ -167,7 +167,7 @@ def scene_costs(configs: Mapping[str, Path], budget_s: float = 1.5) -> dict[str,
     from omegaconf import OmegaConf
 
     from ccm.bench.engines import raw_cpu_per_step, raw_reset_cpu
-    from ccm.experiment.runner import build_components
+    from ccm.experiment.components import build_components
 
     out = {}
     for key, path in configs.items():

@@ -71,7 +71,7 @@ def bench_task(
     simulator (:func:`ccm.bench.engines.raw_loop`); ``ratio_vs_raw`` is the median over the
     repeats of ccm's wall time over the raw loop's."""
     from ccm.bench.engines import raw_loop
-    from ccm.experiment.runner import run_trial
+    from ccm.experiment.trial import run_trial
 
     comp = _components(task, controller, sim)
     sim_time = comp.task.pattern.duration

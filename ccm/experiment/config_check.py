@@ -27,14 +27,14 @@ _SLURM = ("SlurmLauncher", ("sbatch", "srun"))
 
 def trial_duration(pattern_s: float, settings: Mapping[str, Any]) -> float:
     """A trial's planned length [s]: the pattern plus ``settle_time_s``, cut at
-    ``max_time_s`` (``settings`` from :func:`ccm.experiment.runner.check_experiment`)."""
+    ``max_time_s`` (``settings`` from :func:`ccm.experiment.components.check_experiment`)."""
     d = pattern_s + settings["settle_time_s"]
     return d if settings["max_time_s"] is None else min(d, settings["max_time_s"])
 
 
 def check_trial_steps(plan: Any, settings: Mapping[str, Any]) -> None:
-    """Every condition × phase of ``plan`` (:data:`ccm.experiment.runner.Plan`) runs trials of at
-    least :data:`MIN_TRIAL_STEPS` control steps."""
+    """Every condition × phase of ``plan`` (:data:`ccm.experiment.components.Plan`) runs
+    trials of at least :data:`MIN_TRIAL_STEPS` control steps."""
     for cond, phases in plan:
         for _, comp in phases:
             pattern_s = comp.task.pattern.duration
