@@ -87,8 +87,8 @@ from ccm.sim.pybullet.scene import (
     TablePatch,
     TableSpec,
     ToolSpec,
-    boxed_table_parts,
 )
+from ccm.sim.pybullet.world import build_world
 from ccm.sim.sensor import FTSensor
 from ccm.sim.start_pose import check_start_3d
 
@@ -294,81 +294,15 @@ class PyBullet3D(Simulator):
 
     # ------------------------------------------------------------------ world building
 
-    def _static_box(
-        self,
-        center: Sequence[float],
-        half: Sequence[float],
-        friction: float,
-        restitution: float,
-        rgba: Sequence[float],
-    ) -> int:
-        p, cid = self._p, self._client
-        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=list(half), physicsClientId=cid)
-        vis = -1
-        if self.config.gui:
-            vis = p.createVisualShape(
-                p.GEOM_BOX, halfExtents=list(half), rgbaColor=list(rgba), physicsClientId=cid
-            )
-        body = p.createMultiBody(
-            baseMass=0.0,
-            baseCollisionShapeIndex=col,
-            baseVisualShapeIndex=vis,
-            basePosition=list(center),
-            physicsClientId=cid,
-        )
-        p.changeDynamics(
-            body, -1, lateralFriction=friction, restitution=restitution, physicsClientId=cid
-        )
-        self._body_friction[body] = friction
-        return body
-
     def _build_scene(self) -> None:
-        """Table and patches (per ``patch_mode``), boxes."""
-        table = self.scene.table
-        self._table_body = -1
-        self._patch_map = []
-        if table is not None:
-            (cx, cy), (w, d) = table.center, table.size
-            grey = (0.6, 0.5, 0.4, 1.0)
-            blue = (0.2, 0.4, 0.8, 1.0)
-            if self.config.patch_mode != "boxes" or not table.patches:
-                h = table.height
-                self._table_body = self._static_box(
-                    (cx, cy, h / 2.0), (w / 2, d / 2, h / 2), table.friction, table.restitution,
-                    grey,
-                )  # fmt: skip
-                for pt in table.patches:
-                    self._patch_map.append((*pt.bounds(), pt.friction))
-                    if self.config.gui:  # visual only, 0.2 mm proud so it shows
-                        x0, x1, y0, y1 = pt.bounds()
-                        self._visual_box(
-                            ((x0 + x1) / 2, (y0 + y1) / 2, h), ((x1 - x0) / 2, (y1 - y0) / 2,
-                            2e-4), blue,
-                        )  # fmt: skip
-                self._table_mu = table.friction
-            else:
-                self._boxed_table(table, grey, blue)
-        self._box_bodies = set()
-        for b in self.scene.boxes:
-            half = [s / 2.0 for s in b.size]
-            body = self._static_box(b.center, half, b.friction, b.restitution, (0.5, 0.5, 0.5, 1.0))
-            self._box_bodies.add(body)
-
-    def _visual_box(
-        self, center: Sequence[float], half: Sequence[float], rgba: Sequence[float]
-    ) -> None:
-        p, cid = self._p, self._client
-        vis = p.createVisualShape(
-            p.GEOM_BOX, halfExtents=list(half), rgbaColor=list(rgba), physicsClientId=cid
-        )
-        p.createMultiBody(
-            baseMass=0.0, baseVisualShapeIndex=vis, basePosition=list(center), physicsClientId=cid
-        )
-
-    def _boxed_table(self, table: TableSpec, grey: Sequence[float], blue: Sequence[float]) -> None:
-        """``patch_mode: boxes``: base slab, top layer cut around the patches, patch boxes."""
-        for center, half, mu, is_patch in boxed_table_parts(table):
-            self._static_box(center, half, mu, table.restitution, blue if is_patch else grey)
+        """Table and patches (per ``patch_mode``), boxes (:mod:`ccm.sim.pybullet.world`)."""
+        cfg = self.config
+        world = build_world(self._p, self._client, self.scene, cfg.patch_mode, cfg.gui)
+        self._body_friction = world.body_friction
+        self._table_body, self._patch_map = world.table_body, world.patch_map
+        self._box_bodies = world.box_bodies
+        if world.table_mu is not None:
+            self._table_mu = world.table_mu
 
     def _update_patch_friction(self) -> None:
         """``friction_map``: give the table the friction of the patch under the tool point;
