@@ -2,7 +2,7 @@
 :class:`ccm.learn.mixtures.forward_model.IncrementalForwardModel`: the feature scaling X / scale
 fused with the IGMM update (:func:`ccm.learn.mixtures._igmm_kernels.fit_rows`) and with the GMR
 prediction
-(:func:`ccm.learn.mixtures._igmm_kernels.gmr_rows`), one compiled call each instead of a Python
+(:func:`ccm.learn.mixtures._gmr_kernels.gmr_rows`), one compiled call each instead of a Python
 layer,
 numpy divisions and a product per call (a call from Python costs ~1 µs).
 
@@ -14,7 +14,8 @@ from __future__ import annotations
 
 from numba import njit
 
-from ccm.learn.mixtures._igmm_kernels import _JIT, fit_rows, gmr_rows
+from ccm.learn.mixtures._gmr_kernels import gmr_rows
+from ccm.learn.mixtures._igmm_kernels import _JIT, fit_rows
 
 
 @njit(**_JIT)

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ccm.learn.mixtures import _gmr_kernels as _g
 from ccm.learn.mixtures import _igmm_kernels as _k
 
 __all__ = ["GMRConditional", "gmr_predict"]
@@ -289,7 +290,7 @@ class GMRConditional:
         self._di, self._do = di, do
         self._split = np.concatenate([[di, do], ii, oo]).astype(np.int64)
         self._means, self._covs, self._comp, self._istate = means, covs, comp, istate
-        self._cache = _k.new_gmr_cache(kmax, di, do)
+        self._cache = _g.new_gmr_cache(kmax, di, do)
         self._no_cov = np.zeros((1, do, do))
 
     def _owned_nbytes(self) -> int:
@@ -311,7 +312,7 @@ class GMRConditional:
         X, single = as_rows(x_in, self._di, "x_in")
         mean = np.empty((X.shape[0], self._do))
         cov = np.empty((X.shape[0], self._do, self._do)) if want_cov else self._no_cov
-        status = _k.gmr_rows(
+        status = _g.gmr_rows(
             X, self._split, self._means, self._covs, self._comp, self._istate, self._cache,
             mean, cov, want_cov,
         )  # fmt: skip
@@ -321,7 +322,7 @@ class GMRConditional:
 
     @staticmethod
     def raise_status(status: int) -> None:
-        """Raise the ValueError for a non-zero :func:`~ccm.learn.mixtures._igmm_kernels.gmr_rows`
+        """Raise the ValueError for a non-zero :func:`~ccm.learn.mixtures._gmr_kernels.gmr_rows`
         status."""
         if status == -1:
             raise ValueError("the mixture has no components yet: call partial_fit first")
@@ -345,7 +346,7 @@ class GMRConditional:
         return mean[0] if single else mean
 
     def kernel_buffers(self) -> tuple[np.ndarray, ...]:
-        """The arguments :func:`ccm.learn.mixtures._igmm_kernels.gmr_rows` takes between the rows
+        """The arguments :func:`ccm.learn.mixtures._gmr_kernels.gmr_rows` takes between the rows
         and
         the output (split, mixture buffers, cache), for a control loop that calls it itself."""
         return self._split, self._means, self._covs, self._comp, self._istate, self._cache

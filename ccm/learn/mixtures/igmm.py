@@ -49,8 +49,6 @@ over one task); a forgetting factor would be an extension.
 
 from __future__ import annotations
 
-import inspect
-import json
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -68,12 +66,11 @@ from ccm.core.errors import (
     check_range,
 )
 from ccm.learn.mixtures import _igmm_kernels as _k
+from ccm.learn.mixtures import igmm_io
 from ccm.learn.mixtures.gmr import GMRConditional, as_rows, check_split
 
 __all__ = ["IGMM"]
 
-_FORMAT = "ccm.igmm"
-_FORMAT_VERSION = 1
 _MAX_CACHED_SPLITS = 16
 _COUNTERS = {
     "created": _k.I_CREATED,
@@ -470,19 +467,9 @@ class IGMM:
     # -----------------------------------------------------------------------------------------
 
     def state_dict(self) -> dict[str, Any]:
-        """JSON-safe snapshot (settings, components, counters); see :meth:`from_state_dict`."""
-        n = self.n_components_
-        return {
-            "format": _FORMAT,
-            "format_version": _FORMAT_VERSION,
-            "params": self.get_params(),
-            "n_seen": self.n_seen_,
-            "stats": self.stats_,
-            "means": self._means[:n].tolist(),
-            "covariances": self._covs[:n].tolist(),
-            "support": self._sp[:n].tolist(),
-            "ages": [int(a) for a in self._age[:n]],
-        }
+        """JSON-safe snapshot (settings, components, counters); see :meth:`from_state_dict`
+        (:mod:`ccm.learn.mixtures.igmm_io`)."""
+        return igmm_io.to_state(self)
 
     @classmethod
     def from_state_dict(cls, data: Mapping[str, Any], *, key: str = "igmm") -> IGMM:
@@ -492,151 +479,41 @@ class IGMM:
             ValueError: wrong format, inconsistent shapes, non-finite values, covariances
                 that are not positive definite (ConfigError for bad settings).
         """
-        if not isinstance(data, Mapping):
-            raise ValueError(f"IGMM data must be a mapping, got {type(data).__name__}")
-        if data.get("format") != _FORMAT:
-            raise ValueError(f"not an IGMM snapshot: format={data.get('format')!r}")
-        if data.get("format_version") != _FORMAT_VERSION:
-            raise ValueError(
-                f"unsupported IGMM format_version {data.get('format_version')!r} "
-                f"(this code reads {_FORMAT_VERSION})"
-            )
-        missing = [
-            k
-            for k in ("params", "n_seen", "means", "covariances", "support", "ages")
-            if k not in data
-        ]
-        if missing:
-            raise ValueError(f"IGMM data is missing {', '.join(missing)}")
-        params = data["params"]
-        if not isinstance(params, Mapping):
-            raise ValueError("IGMM data: params must be a mapping")
-        allowed = set(inspect.signature(cls.__init__).parameters) - {"self", "key"}
-        unknown = sorted(set(params) - allowed)
-        if unknown:
-            raise ValueError(f"IGMM data: unknown params {', '.join(map(str, unknown))}")
-        required = ("n_features", "sigma_init")
-        absent = [k for k in required if k not in params]
-        if absent:
-            raise ValueError(f"IGMM data: params is missing {', '.join(absent)}")
-        model = cls(**dict(params), key=key)
-        d, kmax = model.n_features, model.max_components
-        try:
-            means = np.asarray(data["means"], dtype=np.float64)
-            covs = np.asarray(data["covariances"], dtype=np.float64)
-            sp = np.asarray(data["support"], dtype=np.float64)
-            ages = np.asarray(data["ages"], dtype=np.float64)
-            n_seen = int(data["n_seen"])
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"IGMM data: non-numeric component arrays ({exc})") from None
-        if means.size == 0:  # an empty model ([] in JSON)
-            means, covs = means.reshape(0, d), covs.reshape(0, d, d)
-            sp, ages = sp.reshape(0), ages.reshape(0)
+        return igmm_io.from_state(cls, data, key)
+
+    def restore(
+        self,
+        means: np.ndarray,
+        covs: np.ndarray,
+        support: np.ndarray,
+        ages: np.ndarray,
+        *,
+        n_seen: int,
+        stats: Mapping[str, Any],
+    ) -> None:
+        """Set the components (checked arrays: :mod:`ccm.learn.mixtures.igmm_io`) and the
+        counters of a fresh model; ValueError if a covariance is not positive definite."""
         n = means.shape[0]
-        if means.ndim != 2 or means.shape[1] != d or n > kmax:
-            raise ValueError(
-                f"IGMM data: means must have shape (K<={kmax}, {d}), got {means.shape}"
-            )
-        if covs.shape != (n, d, d) or sp.shape != (n,) or ages.shape != (n,):
-            raise ValueError(
-                f"IGMM data: inconsistent shapes means {means.shape}, covariances {covs.shape}, "
-                f"support {sp.shape}, ages {ages.shape}"
-            )
-        for name, arr in (("means", means), ("covariances", covs), ("support", sp), ("ages", ages)):
-            if not np.all(np.isfinite(arr)):
-                raise ValueError(f"IGMM data: {name} must be finite")
-        if np.any(sp <= 0.0) or np.any(ages < 1.0) or n_seen < 0:
-            raise ValueError("IGMM data: support must be > 0, ages >= 1 and n_seen >= 0")
-        if not np.allclose(covs, np.swapaxes(covs, 1, 2), rtol=1e-12, atol=0.0):
-            raise ValueError("IGMM data: covariances must be symmetric")
-        model._means[:n] = means
-        model._covs[:n] = covs
-        model._sp[:n] = sp
-        model._age[:n] = np.floor(ages)
-        bad = _k.refactor_all(n, model._covs, model._chols, model._comp, model._istate)
+        self._means[:n] = means
+        self._covs[:n] = covs
+        self._sp[:n] = support
+        self._age[:n] = np.floor(ages)
+        bad = _k.refactor_all(n, self._covs, self._chols, self._comp, self._istate)
         if bad >= 0:
             raise ValueError(f"IGMM data: covariance {bad} is not positive definite")
-        model._istate[_k.I_K] = n
-        model._istate[_k.I_SEEN] = n_seen
-        stats = data.get("stats", {})
-        if isinstance(stats, Mapping):
-            for name, i in _COUNTERS.items():
-                model._istate[i] = int(stats.get(name, 0))
-        model._istate[_k.I_VERSION] = 1
-        return model
+        self._istate[_k.I_K] = n
+        self._istate[_k.I_SEEN] = n_seen
+        for name, i in _COUNTERS.items():
+            self._istate[i] = int(stats.get(name, 0))
+        self._istate[_k.I_VERSION] = 1
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the model to ``path`` as an uncompressed NPZ (no pickled objects).
-
-        The file is written to a temporary name and renamed, so a crash never leaves a
-        half-written model behind.
-
-        Returns:
-            The path written.
-        """
-        path = Path(path)
-        n = self.n_components_
-        arrays = {
-            "format": np.array(_FORMAT),
-            "format_version": np.array(_FORMAT_VERSION, dtype=np.int64),
-            "params_json": np.array(json.dumps(self.get_params(), sort_keys=True)),
-            "stats_json": np.array(json.dumps(self.stats_, sort_keys=True)),
-            "n_seen": np.array(self.n_seen_, dtype=np.int64),
-            "means": self._means[:n].copy(),
-            "covariances": self._covs[:n].copy(),
-            "support": self._sp[:n].copy(),
-            "ages": self._age[:n].astype(np.int64),
-        }
-        tmp = path.with_name(path.name + ".tmp")
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-        os.replace(tmp, path)
-        return path
+        """Write the model to ``path`` as an uncompressed NPZ (no pickled objects), atomically;
+        returns the path written."""
+        return igmm_io.save_npz(self, path)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str], *, key: str = "igmm") -> IGMM:
-        """Read a model written by :meth:`save` (``np.load(..., allow_pickle=False)``).
-
-        Raises:
-            ValueError: the file is missing pieces, corrupted or not an IGMM file.
-        """
-        path = Path(path)
-        needed = ("format", "format_version", "params_json", "n_seen", "means", "covariances")
-        needed += ("support", "ages")
-        try:
-            npz = np.load(path, allow_pickle=False)
-        except Exception as exc:  # any failure to parse is a bad file for the caller
-            raise ValueError(
-                f"{path}: not a valid IGMM file ({type(exc).__name__}: {exc})"
-            ) from None
-        try:
-            if not isinstance(npz, np.lib.npyio.NpzFile):
-                raise ValueError("not an NPZ archive")
-            missing = [k for k in needed if k not in npz.files]
-            if missing:
-                raise ValueError(f"missing arrays {', '.join(missing)}")
-            raw = {k: npz[k] for k in npz.files}
-        except Exception as exc:
-            raise ValueError(
-                f"{path}: not a valid IGMM file ({type(exc).__name__}: {exc})"
-            ) from None
-        finally:
-            if isinstance(npz, np.lib.npyio.NpzFile):
-                npz.close()
-        try:
-            data = {
-                "format": str(raw["format"][()]),
-                "format_version": int(raw["format_version"]),
-                "params": json.loads(str(raw["params_json"][()])),
-                "stats": json.loads(str(raw["stats_json"][()])) if "stats_json" in raw else {},
-                "n_seen": int(raw["n_seen"]),
-                "means": raw["means"],
-                "covariances": raw["covariances"],
-                "support": raw["support"],
-                "ages": raw["ages"],
-            }
-            return cls.from_state_dict(data, key=key)
-        except ConfigError as exc:
-            raise ValueError(f"{path}: invalid IGMM settings ({exc})") from None
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{path}: not a valid IGMM file ({exc})") from None
+        """Read a model written by :meth:`save` (ValueError for a missing piece, a corrupted
+        file or one that is not an IGMM file)."""
+        return igmm_io.load_npz(cls, path, key)
