@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -75,76 +76,116 @@ def run_experiment(
         )
     plan = plan_experiment(cfg, compose, settings["trials"])
     check_trial_steps(plan, settings)
-    extra = check_extra_metrics(cfg)
-
-    def n_trials(ph: Phase) -> int:
-        return min(ph.trials, settings["trials"]) if settings["fast"] else ph.trials
-
-    def duration(comp: Components) -> float:
-        return trial_duration(comp.task.pattern.duration, settings)
-
-    # a truncated trial (max_time_s, fast) is never lengthened by re-timing
-    extension = 0.0 if settings["max_time_s"] is not None else settings["max_retime_s"]
+    run = _Run(settings, check_extra_metrics(cfg), [] if finished is None else finished)
     total_steps = sum(
-        int(duration(comp) / comp.sim.control_dt) * n_trials(ph)
+        _planned_steps(comp, settings) * _n_trials(ph, settings)
         for _, phases in plan
         for ph, comp in phases
     )
-    bar = _progress_bar(total_steps, cfg.experiment.name, show_progress)
-    trials_out: list[dict[str, Any]] = [] if finished is None else finished
-    logs: dict[str, list[dict[str, np.ndarray]]] = {}
+    progress = _Progress(total_steps, cfg.experiment.name, show_progress)
     wall0 = time.perf_counter()
-    sim_time = 0.0
-    done: dict[str, int] = {}  # trials run per condition
-    planned_left = total_steps  # planned steps of the trials not yet run
-    timing = _SolveTiming()
     try:
         for cond, phases in plan:
-            controller = phases[0][1].controller
-            trial = 0
-            for ph, comp in phases:
-                comp = Components(sim=comp.sim, task=comp.task, controller=controller)
-                for i in range(n_trials(ph)):
-                    trial += 1
-                    done[cond.name] = trial
-                    seed = trial_seed(int(cfg.seed), trial)
-                    planned = int(duration(comp) / comp.sim.control_dt)  # before re-timing
-                    planned_left -= planned
-                    if bar is not None:
-                        bar.reserve = planned_left
-                    rec = run_trial(
-                        comp, seed, duration(comp), bar.advance if bar else None,
-                        max_extension_s=extension,
-                        expect=bar.trial_steps if bar else None,
-                    )  # fmt: skip
-                    if bar is not None:  # a re-timed trial: expect the phase's next ones alike
-                        later = n_trials(ph) - i - 1
-                        bar.expect(bar.n + planned_left + later * (len(rec) - planned))
-                    sim_time += len(rec) * comp.sim.control_dt
-                    if keep_trial(settings["timeseries"], i, n_trials(ph)):  # experiment.timeseries
-                        write_timeseries(
-                            trial_path(out_dir, cond.name, trial), rec.arrays(),
-                            settings["timeseries_bits"],
-                        )  # fmt: skip
-                    row = {"condition": cond.name, "phase": ph.name, "trial": trial, "seed": seed}
-                    trials_out.append({**row, **_score_trial(rec, comp, settings, extra, cfg)})
-                    timing.add(cond.name, comp.controller.report())
-                    kept = logs.setdefault(cond.name, [])
-                    kept[1:] = []  # keep the first and the latest trial's log for figures
-                    kept.append(rec.arrays())
-                    controller.end_trial()
-                comp.sim.close()
+            _run_condition(cfg, out_dir, cond.name, phases, run, progress)
     finally:
-        if bar is not None:
-            bar.close()
-    save_learned_states(out_dir, plan, done)
-    info = {"wall_time_s": (wall := time.perf_counter() - wall0), "sim_time_s": sim_time,
-            "realtime_factor": sim_time / wall, **timing.info()}  # fmt: skip
+        progress.close()
+    save_learned_states(out_dir, plan, run.done)
+    info = {"wall_time_s": (wall := time.perf_counter() - wall0), "sim_time_s": run.sim_time,
+            "realtime_factor": run.sim_time / wall, **run.timing.info()}  # fmt: skip
     if settings["animate"] == "first_last":  # clips of each condition's first and last trial
         wall0 = time.perf_counter()
-        animate.write_animations(out_dir, cfg, plan, logs, trials_out)
+        animate.write_animations(out_dir, cfg, plan, run.logs, run.trials)
         info["animate_wall_s"] = time.perf_counter() - wall0
-    return _write_run(cfg, out_dir, plan, logs, settings, trials_out, info)
+    return _write_run(cfg, out_dir, plan, run.logs, settings, run.trials, info)
+
+
+@dataclass
+class _Run:
+    """What the trial loop of :func:`run_experiment` collects."""
+
+    settings: Mapping[str, Any]
+    extra: Sequence[str]  # the extra metrics experiment.metrics names
+    trials: list[dict[str, Any]]  # a record per finished trial
+    logs: dict[str, list[dict[str, np.ndarray]]] = field(default_factory=dict)  # figures
+    done: dict[str, int] = field(default_factory=dict)  # trials run per condition
+    sim_time: float = 0.0
+    timing: _SolveTiming = field(default_factory=lambda: _SolveTiming())
+
+
+def _n_trials(ph: Phase, settings: Mapping[str, Any]) -> int:
+    return min(ph.trials, settings["trials"]) if settings["fast"] else ph.trials
+
+
+def _planned_steps(comp: Components, settings: Mapping[str, Any]) -> int:
+    """Control steps of a trial of the planned pattern (before any re-timing)."""
+    return int(trial_duration(comp.task.pattern.duration, settings) / comp.sim.control_dt)
+
+
+def _run_condition(
+    cfg: DictConfig,
+    out_dir: Path,
+    name: str,
+    phases: Sequence[tuple[Phase, Components]],
+    run: _Run,
+    progress: _Progress,
+) -> None:
+    """Every phase and trial of one condition, with one controller throughout."""
+    settings = run.settings
+    # a truncated trial (max_time_s, fast) is never lengthened by re-timing
+    extension = 0.0 if settings["max_time_s"] is not None else settings["max_retime_s"]
+    controller = phases[0][1].controller
+    trial = 0
+    for ph, comp in phases:
+        comp = Components(sim=comp.sim, task=comp.task, controller=controller)
+        n = _n_trials(ph, settings)
+        for i in range(n):
+            trial += 1
+            run.done[name] = trial
+            seed = trial_seed(int(cfg.seed), trial)
+            planned = _planned_steps(comp, settings)
+            progress.start_trial(planned)
+            rec = run_trial(
+                comp, seed, trial_duration(comp.task.pattern.duration, settings),
+                progress.advance, max_extension_s=extension, expect=progress.trial_steps,
+            )  # fmt: skip
+            progress.end_trial(len(rec), planned, later=n - i - 1)
+            run.sim_time += len(rec) * comp.sim.control_dt
+            if keep_trial(settings["timeseries"], i, n):  # experiment.timeseries
+                write_timeseries(
+                    trial_path(out_dir, name, trial), rec.arrays(), settings["timeseries_bits"]
+                )
+            row = {"condition": name, "phase": ph.name, "trial": trial, "seed": seed}
+            run.trials.append({**row, **_score_trial(rec, comp, settings, run.extra, cfg)})
+            run.timing.add(name, comp.controller.report())
+            kept = run.logs.setdefault(name, [])
+            kept[1:] = []  # keep the first and the latest trial's log for figures
+            kept.append(rec.arrays())
+            controller.end_trial()
+        comp.sim.close()
+
+
+class _Progress:
+    """The progress bar's bookkeeping: the planned steps of the trials not yet run, and the
+    bar's estimate once a re-timed trial shows how long the phase's next ones will be."""
+
+    def __init__(self, total_steps: int, name: str, show: bool) -> None:
+        self.bar = _progress_bar(total_steps, name, show)
+        self.left = total_steps  # planned steps of the trials not yet run
+        self.advance = self.bar.advance if self.bar is not None else None
+        self.trial_steps = self.bar.trial_steps if self.bar is not None else None
+
+    def start_trial(self, planned: int) -> None:
+        self.left -= planned
+        if self.bar is not None:
+            self.bar.reserve = self.left
+
+    def end_trial(self, steps: int, planned: int, later: int) -> None:
+        if self.bar is not None:  # a re-timed trial: expect the phase's next ones alike
+            self.bar.expect(self.bar.n + self.left + later * (steps - planned))
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
 
 
 def _score_trial(

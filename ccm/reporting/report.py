@@ -222,6 +222,21 @@ def usable_runs(root: Path) -> tuple[list[tuple[Path, dict[str, Any]]], list[Set
     return screen(collect(root), truncated)
 
 
+_STYLE = (
+    "body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em}"
+    "table{border-collapse:collapse;font-size:90%}table.claims{width:100%;table-layout:fixed}"
+    "td,th{border:1px solid #ccc;padding:4px;vertical-align:top;overflow-wrap:anywhere}"
+    "th.claim{width:18%}th.src{width:11%}th.paper{width:11%}th.ours{width:15%}"
+    "th.verdict{width:8%}"
+    ".reproduced{background:#d8f5d0}.partially{background:#fff2c2}"
+    ".not.reproduced,.not-reproduced{background:#f8d0d0}.not-measured{background:#eee}"
+    ".banner{background:#f8d0d0;border:2px solid #b00;padding:8px;font-weight:bold}"
+    "img,video{max-width:100%;height:auto;display:block;margin:4px 0}"
+)
+
+Section = tuple[list[str], list[str]]  # (markdown lines, html lines)
+
+
 def render(
     root: Path,
     claims_path: Path = DEFAULT_CLAIMS,
@@ -231,17 +246,30 @@ def render(
     of :func:`usable_runs`, when the caller already has it)."""
     runs, aside = screened if screened is not None else usable_runs(root)
     verdicts = _verdicts(runs, claims_path)
-    table = metrics_table(runs)
     failures = [(d, f"{s.get('status', '?')}: {s.get('error', '?')}")
                 for d, s in runs if s.get("status") != "ok"]  # fmt: skip
     failures += [(a.run, f"set aside ({a.kind}): {a.reason}") for a in aside]
     counts: dict[str, int] = {}
     for v in verdicts:
         counts[v.verdict] = counts.get(v.verdict, 0) + 1
-    found = tally(runs, aside)
     tally_claims = f"{len(verdicts)} in {claims_path.name}: " + ", ".join(
         f"{n} {k}" for k, n in sorted(counts.items())
     )
+    md, hb = _header(root, runs, f"{tally(runs, aside)}; claims: {tally_claims}.")
+    for part in (
+        _claim_rows(verdicts, runs, root),
+        _not_pooled(failures),
+        animations_section(root, runs),  # clips, where the runs have them
+        _metrics_section(metrics_table(runs)),
+    ):
+        md += part[0]
+        hb += part[1]
+    hb.append("</body></html>")
+    return "\n".join(md) + "\n", "\n".join(hb) + "\n"
+
+
+def _header(root: Path, runs: Sequence[tuple[Path, dict[str, Any]]], line: str) -> Section:
+    """The title, a banner when any run was truncated, the tally and the claims table head."""
     cut = sum(truncated(d) for d, _ in runs)
     banner = (
         f"**Not results: {cut} of {len(runs)} runs were truncated** (`experiment.fast` or "
@@ -250,36 +278,32 @@ def render(
         if cut
         else ""
     )
-
     md = [
-        f"# ccm report: {root}", "", *([banner, ""] if banner else []),
-        f"{found}; claims: {tally_claims}.", "",
+        f"# ccm report: {root}", "", *([banner, ""] if banner else []), line, "",
         "| claim | source | paper | ours (mean ± 95 % CI) | verdict |", "|---|---|---|---|---|",
     ]  # fmt: skip
+    shown = html.escape(banner.replace("**", "").replace("`", ""))
     hb = [
         "<!doctype html><html><head><meta charset='utf-8'><title>ccm report</title><style>",
-        "body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em}"
-        "table{border-collapse:collapse;font-size:90%}table.claims{width:100%;table-layout:fixed}"
-        "td,th{border:1px solid #ccc;padding:4px;vertical-align:top;overflow-wrap:anywhere}"
-        "th.claim{width:18%}th.src{width:11%}th.paper{width:11%}th.ours{width:15%}"
-        "th.verdict{width:8%}"
-        ".reproduced{background:#d8f5d0}.partially{background:#fff2c2}"
-        ".not.reproduced,.not-reproduced{background:#f8d0d0}.not-measured{background:#eee}"
-        ".banner{background:#f8d0d0;border:2px solid #b00;padding:8px;font-weight:bold}"
-        "img,video{max-width:100%;height:auto;display:block;margin:4px 0}",
+        _STYLE,
         "</style></head><body>",
         "<h1>ccm report</h1>"
-        + (
-            f"<p class='banner'>{html.escape(banner.replace('**', '').replace('`', ''))}</p>"
-            if banner
-            else ""
-        )
-        + f"<p>{html.escape(str(root))}: {html.escape(found)}; claims: "
-        f"{html.escape(tally_claims)}.</p><h2>Claims</h2><table class='claims'><tr>"
+        + (f"<p class='banner'>{shown}</p>" if banner else "")
+        + f"<p>{html.escape(str(root))}: {html.escape(line.removesuffix('.'))}.</p>"
+        "<h2>Claims</h2><table class='claims'><tr>"
         "<th class='claim'>claim</th><th class='src'>source</th><th class='paper'>paper</th>"
         "<th class='ours'>ours (mean ± 95 % CI)</th><th class='verdict'>verdict</th>"
         "<th>figures</th></tr>",
     ]
+    return md, hb
+
+
+def _claim_rows(
+    verdicts: Sequence[Verdict], runs: Sequence[tuple[Path, dict[str, Any]]], root: Path
+) -> Section:
+    """One row per claim: statement, source, the paper's value, ours, verdict, figures."""
+    md: list[str] = []
+    hb: list[str] = []
     for v in verdicts:
         c = v.claim
         figs = [(f, _figure(runs, c.experiment, f)) for f in c.figures]
@@ -303,8 +327,13 @@ def render(
             f"<td class='{v.verdict.replace(' ', '-')}'><b>{html.escape(v.verdict)}</b></td>"
             f"<td>{imgs}</td></tr>"
         )
-    hb.append("</table><h2>Runs not pooled: failed, interrupted, set aside</h2>")
-    md += ["", "## Runs not pooled: failed, interrupted, set aside", ""]
+    return md, hb
+
+
+def _not_pooled(failures: Sequence[tuple[Path, str]]) -> Section:
+    """The runs left out of the pooled numbers, and why (its HTML closes the claims table)."""
+    md = ["", "## Runs not pooled: failed, interrupted, set aside", ""]
+    hb = ["</table><h2>Runs not pooled: failed, interrupted, set aside</h2>"]
     if failures:
         md += [f"* `{d}`: {e}" for d, e in failures]
         hb.append("<ul>" + "".join(
@@ -313,11 +342,14 @@ def render(
     else:
         md.append("None.")
         hb.append("<p>None.</p>")
-    anim_md, anim_html = animations_section(root, runs)  # clips, where the runs have them
-    md += anim_md
-    hb += anim_html
-    md += ["", "## Metrics (mean ± 95 % CI over seeds)", ""]
-    hb.append("<h2>Metrics (mean ± 95 % CI over seeds)</h2>")
+    return md, hb
+
+
+def _metrics_section(table: Any) -> Section:
+    """Per experiment: every condition's metrics, mean ± 95 % CI over seeds."""
+    md = ["", "## Metrics (mean ± 95 % CI over seeds)", ""]
+    hb = ["<h2>Metrics (mean ± 95 % CI over seeds)</h2>"]
+    head = "".join(f"<th>{h}</th>" for h in ("condition", "metric", "mean", "± CI", "n", "missing"))
     for exp, sub in table.groupby("experiment", sort=True):
         md += [
             f"### {exp}",
@@ -328,17 +360,13 @@ def render(
         md += [f"| {r.condition} | {r.metric} | {_mean(r.mean)} | {_ci(r.ci95)} | {r.n} | "
                f"{r.missing} |" for r in sub.itertuples()]  # fmt: skip
         md.append("")
-        head = "".join(
-            f"<th>{h}</th>" for h in ("condition", "metric", "mean", "± CI", "n", "missing")
-        )
         hb.append(f"<details><summary>{html.escape(str(exp))}</summary><table><tr>{head}</tr>")
         hb += [f"<tr><td>{html.escape(str(r.condition))}</td><td>{html.escape(str(r.metric))}"
                f"</td><td>{_mean(r.mean)}</td><td>{_ci(r.ci95)}</td><td>{r.n}</td>"
                f"<td>{r.missing}</td></tr>"
                for r in sub.itertuples()]  # fmt: skip
         hb.append("</table></details>")
-    hb.append("</body></html>")
-    return "\n".join(md) + "\n", "\n".join(hb) + "\n"
+    return md, hb
 
 
 def main(argv: Sequence[str]) -> int:
