@@ -166,19 +166,46 @@ def contact_metrics(
     log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]
 ) -> dict[str, float | None]:
     """Impact force, impact acceleration, contact times and transition time for one trial."""
-    rise = check_nonneg("metrics.impact_onset_N", params.get("impact_onset_N", 1.0))
-    window = check_nonneg("metrics.impact_window_s", params.get("impact_window_s", 0.05))
-    f_target = check_positive(
-        "metrics.impact_force_target_N", params.get("impact_force_target_N", 8.0)
-    )
-    near = check_nonneg("metrics.impact_near_m", params.get("impact_near_m", 0.01))
-    w0, w1 = _acc_window(params.get("impact_acc_window_s", (-0.05, 0.2)))
-    lowpass_hz = check_positive("metrics.lowpass_hz", params.get("lowpass_hz"))
+    settings = {
+        "rise": check_nonneg("metrics.impact_onset_N", params.get("impact_onset_N", 1.0)),
+        "window": check_nonneg("metrics.impact_window_s", params.get("impact_window_s", 0.05)),
+        "f_target": check_positive(
+            "metrics.impact_force_target_N", params.get("impact_force_target_N", 8.0)
+        ),
+        "near": check_nonneg("metrics.impact_near_m", params.get("impact_near_m", 0.01)),
+        "acc_window": _acc_window(params.get("impact_acc_window_s", (-0.05, 0.2))),
+        "lowpass_hz": check_positive("metrics.lowpass_hz", params.get("lowpass_hz")),
+    }
     contacts = scored_contacts(params.get("task_contacts") or ())
-
-    axes = "xyz"[:dim]
     t = np.asarray(log["t"], dtype=float)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    out = _impact_metrics(log, "xyz"[:dim], t, dt, contacts, settings)
+    out.update(_belief_metrics(params.get("task_contacts") or (), params.get("controller_report")))
+    out.update(_patch_metrics(log, dim, params))
+    alpha = log.get("transition_alpha")
+    out["transition_time_s"] = (
+        float(np.count_nonzero(np.asarray(alpha) > 0.0) * dt) if alpha is not None else 0.0
+    )
+    event = log.get("collision_event")
+    if event is None:
+        out["n_collision_events"] = None
+    else:
+        on = np.asarray(event, dtype=float) > 0.0
+        out["n_collision_events"] = float(np.count_nonzero(on[1:] & ~on[:-1]) + int(on[:1].sum()))
+    return out
+
+
+def _impact_metrics(
+    log: Mapping[str, np.ndarray],
+    axes: str,
+    t: np.ndarray,
+    dt: float,
+    contacts: Sequence[Mapping[str, Any]],
+    settings: Mapping[str, Any],
+) -> dict[str, float | None]:
+    """Per expected contact: the true normal force's peak in the window after its onset,
+    |F_peak − target|, the acceleration's peak around it and the onset time; and the peaks
+    over all contacts."""
     out: dict[str, float | None] = {}
     impact_f: list[float] = []
     impact_a: list[float] = []
@@ -192,44 +219,32 @@ def contact_metrics(
         )  # fmt: skip
         vel = np.column_stack([log[f"vel_{a}"] for a in axes])
         pos = np.column_stack([log[f"pos_{a}"] for a in axes])
-        acc, _ = derivatives(vel, dt, lowpass_hz)
+        acc, _ = derivatives(vel, dt, settings["lowpass_hz"])
         acc_n = np.linalg.norm(acc, axis=1)
         indices = [int(c["segment_index"]) for c in contacts]
+        window, (w0, w1) = settings["window"], settings["acc_window"]
         for i, c in enumerate(contacts):
             name = str(c["name"])
             n = np.asarray(c["normal"], dtype=float)
-            f_n = f_true @ n
             gap = (pos - np.asarray(c["position"], dtype=float)) @ n
             later = [j for j in indices[i + 1 :] if j > indices[i]]
-            o = _onset(n_true @ n, gap, seg, indices[i], later, rise, near)
+            o = _onset(n_true @ n, gap, seg, indices[i], later, settings["rise"], settings["near"])
             force = acc_peak = t_on = None
             if o is not None:
                 t_on = float(t[o])
                 in_f = (t >= t_on - 1e-12) & (t <= t_on + window + 1e-12)
-                force = float(np.max(f_n[in_f]))
+                force = float(np.max((f_true @ n)[in_f]))
                 in_a = (t >= t_on + w0 - 1e-12) & (t <= t_on + w1 + 1e-12)
                 acc_peak = float(np.max(acc_n[in_a]))
                 impact_f.append(force)
                 impact_a.append(acc_peak)
+            error = None if force is None else abs(force - settings["f_target"])
             out[f"impact_force_N_{name}"] = force
-            out[f"impact_force_error_N_{name}"] = None if force is None else abs(force - f_target)
+            out[f"impact_force_error_N_{name}"] = error
             out[f"impact_acc_mps2_{name}"] = acc_peak
             out[f"contact_time_s_{name}"] = t_on
     out["peak_impact_force_N"] = max(impact_f) if impact_f else None
     out["peak_impact_acc_mps2"] = max(impact_a) if impact_a else None
-
-    out.update(_belief_metrics(params.get("task_contacts") or (), params.get("controller_report")))
-    out.update(_patch_metrics(log, dim, params))
-    alpha = log.get("transition_alpha")
-    out["transition_time_s"] = (
-        float(np.count_nonzero(np.asarray(alpha) > 0.0) * dt) if alpha is not None else 0.0
-    )
-    event = log.get("collision_event")
-    if event is None:
-        out["n_collision_events"] = None
-    else:
-        on = np.asarray(event, dtype=float) > 0.0
-        out["n_collision_events"] = float(np.count_nonzero(on[1:] & ~on[:-1]) + int(on[:1].sum()))
     return out
 
 

@@ -259,15 +259,25 @@ def mode_metrics(
     out["mean_confidence_margin"] = _mean(margins)
 
     if "stiffness_Npm" in log:
-        stiff = np.nan_to_num(np.asarray(log["stiffness_Npm"], dtype=float), nan=np.inf)
-        trig = trigger_steps(log)
-        times: dict[int, list[float]] = {KNOWN: [], NEW: [], INITIAL: []}
-        for d in decs:
-            later = trig[trig > d.step]
-            cap = int(later[0]) if later.size else len(t)
-            kind = d.kind if d.previous >= 0 else INITIAL
-            times[kind].append(_high_stiffness_time(t, stiff, d, cap, k_high))
-        out["high_stiffness_time_new_s"] = _mean(times[NEW])
-        out["high_stiffness_time_known_s"] = _mean(times[KNOWN])
-        out["high_stiffness_time_initial_s"] = _mean(times[INITIAL])
+        out.update(_high_stiffness_times(log, t, decs, k_high))
     return out
+
+
+def _high_stiffness_times(
+    log: Mapping[str, np.ndarray], t: np.ndarray, decs: list[Decision], k_high: float
+) -> dict[str, float | None]:
+    """Mean time at high stiffness after a decision, per kind (new, known, initial mode),
+    each capped at the next trigger (module docstring)."""
+    stiff = np.nan_to_num(np.asarray(log["stiffness_Npm"], dtype=float), nan=np.inf)
+    trig = trigger_steps(log)
+    times: dict[int, list[float]] = {KNOWN: [], NEW: [], INITIAL: []}
+    for d in decs:
+        later = trig[trig > d.step]
+        cap = int(later[0]) if later.size else len(t)
+        kind = d.kind if d.previous >= 0 else INITIAL
+        times[kind].append(_high_stiffness_time(t, stiff, d, cap, k_high))
+    return {
+        "high_stiffness_time_new_s": _mean(times[NEW]),
+        "high_stiffness_time_known_s": _mean(times[KNOWN]),
+        "high_stiffness_time_initial_s": _mean(times[INITIAL]),
+    }
