@@ -110,17 +110,22 @@ class ContactEvents:
         if not active:
             return False
         if self._stall_since == math.inf:
-            if not moving:
-                return False  # not approaching anything
-            u = target.velocity / speed
-            if float(obs.lin_vel @ u) > self.stall_fraction * speed:  # sliding along u
-                self._track_resistance(obs.t, max(0.0, -float(obs.force @ u)))
-                return False
-            if math.isnan(self._slide_resist):
-                return False  # never slid along u: starting from rest is no stall
+            if moving:
+                self._stall_begins(obs, target.velocity / speed, speed)
+            return False  # not approaching anything, or the stall has just begun
+        return self._stall_is_contact(obs, target, speed)
+
+    def _stall_begins(self, obs: Observation, u: np.ndarray, speed: float) -> None:
+        """Track the sliding resistance along u while the tool slides; start a stall when it
+        stops sliding (not from rest: a tool that never slid along u has not stalled)."""
+        if float(obs.lin_vel @ u) > self.stall_fraction * speed:  # sliding along u
+            self._track_resistance(obs.t, max(0.0, -float(obs.force @ u)))
+        elif not math.isnan(self._slide_resist):
             self._stall_since, self._stall_u, self._stall_speed = obs.t, u, speed
             self._stall_peak = -float(obs.force @ u)
-            return False
+
+    def _stall_is_contact(self, obs: Observation, target: TargetSample, speed: float) -> bool:
+        """During a stall: the force rise and lag tests of :meth:`_pressed`."""
         u = self._stall_u
         floor = max(speed, self.detector.min_approach_speed)
         if float(obs.lin_vel @ u) > self.stall_fraction * floor:  # the tool moves on
