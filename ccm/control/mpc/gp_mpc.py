@@ -104,24 +104,9 @@ class GPMPC(Controller):
         }  # fmt: skip
         self._alpha_from_demos = False  # mpc.disturbance.alpha: demonstrations
         self._split_hz = 15.0
-        if isinstance(mpc, bool):
-            self.mpc_cfg: dict[str, Any] | None = {} if mpc else None
-        elif isinstance(mpc, Mapping):
-            self.mpc_cfg = dict(mpc)
-            from ccm.control.mpc.settings import MPCSettings  # casadi: only for the MPC
-
-            MPCSettings.parse(self.mpc_cfg, f"{key}.mpc")  # one clear error at start-up
-            dist = self.mpc_cfg.get("disturbance") or {}
-            self._alpha_from_demos = dist.get("alpha") == "demonstrations"
-            self._split_hz = float(dist.get("omega_p", 2 * np.pi * 15)) / (2 * np.pi)
-        else:
-            raise ConfigError(f"{key}.mpc", "must be a mapping of MPC settings or false")
+        self.mpc_cfg = self._mpc_block(mpc)
         self.mpc_period_s = check_positive(f"{key}.mpc_period_s", mpc_period_s)
-        modes = [int(m) for m in demo_modes] if self.mpc_cfg is not None else []
-        if self.mpc_cfg is not None and not modes:
-            raise ConfigError(f"{key}.demo_modes", "needs at least one demonstration for the GPs")
-        if any(m < 0 for m in modes) or (modes and set(modes) != set(range(max(modes) + 1))):
-            raise ConfigError(f"{key}.demo_modes", f"labels must be 0..N-1, each used; got {modes}")
+        modes = self._demo_modes(demo_modes)
         self.demo_modes = modes
         self.n_modes = max(modes) + 1 if modes else 1
         self._belief_signals = tuple(f"belief_{m}" for m in range(self.n_modes))
@@ -142,6 +127,32 @@ class GPMPC(Controller):
         self._iterations: list[int] = []
         self._cpu: list[float] = []  # process CPU time of each solve: robust to a shared machine
         self.dim = 0
+
+    def _mpc_block(self, mpc: Mapping[str, Any] | bool) -> dict[str, Any] | None:
+        """The ``mpc`` settings (checked now: one clear error at start-up), {} for the
+        defaults, None for no MPC (``false``)."""
+        if isinstance(mpc, bool):
+            return {} if mpc else None
+        if not isinstance(mpc, Mapping):
+            raise ConfigError(f"{self.key}.mpc", "must be a mapping of MPC settings or false")
+        from ccm.control.mpc.settings import MPCSettings  # casadi: only for the MPC
+
+        cfg = dict(mpc)
+        MPCSettings.parse(cfg, f"{self.key}.mpc")
+        dist = cfg.get("disturbance") or {}
+        self._alpha_from_demos = dist.get("alpha") == "demonstrations"
+        self._split_hz = float(dist.get("omega_p", 2 * np.pi * 15)) / (2 * np.pi)
+        return cfg
+
+    def _demo_modes(self, demo_modes: Sequence[int]) -> list[int]:
+        """The mode label of each demonstration: 0..N-1, each used (none without an MPC)."""
+        modes = [int(m) for m in demo_modes] if self.mpc_cfg is not None else []
+        key = f"{self.key}.demo_modes"
+        if self.mpc_cfg is not None and not modes:
+            raise ConfigError(key, "needs at least one demonstration for the GPs")
+        if any(m < 0 for m in modes) or (modes and set(modes) != set(range(max(modes) + 1))):
+            raise ConfigError(key, f"labels must be 0..N-1, each used; got {modes}")
+        return modes
 
     # ---------------------------------------------------------------- life cycle
     @property
