@@ -26,14 +26,31 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from ccm.core.errors import ConfigError, check_keys, check_nonneg, check_positive, to_plain
-from ccm.sim.pymunk.parse import RegionSpec, Vec2, as_list, vec2
+from ccm.core.errors import ConfigError, check_nonneg, check_positive
+from ccm.core.fields import checked, field_values, nested
+from ccm.sim.pymunk.parse import RegionSpec, Vec2, as_list, nonneg_vec2, vec2
 
 
-def _require(key: str, d: dict[str, Any], names: tuple[str, ...]) -> None:
-    for name in names:
-        if name not in d:
-            raise ConfigError(f"{key}.{name}", "is required")
+def unit_vec2(key: str, value: Any) -> Vec2:
+    """A non-zero 2-vector, normalised."""
+    nx, ny = vec2(key, value)
+    norm = math.hypot(nx, ny)
+    if norm < 1e-9:
+        raise ConfigError(key, f"must be a non-zero vector, got {value!r}")
+    return (nx / norm, ny / norm)
+
+
+def _goals(key: str, value: Any) -> tuple[Vec2, ...]:
+    """At least one goal [x, y] [m]."""
+    goals = tuple(vec2(f"{key}[{i}]", g) for i, g in enumerate(as_list(key, value)))
+    if not goals:
+        raise ConfigError(key, "must hold at least one goal [x, y]")
+    return goals
+
+
+def _any(key: str, value: Any) -> Any:
+    """No check of its own (the spec checks the value against its other fields)."""
+    return value
 
 
 @dataclass(frozen=True)
@@ -56,31 +73,15 @@ class CompliantWallSpec:
         position_jitter_m: j [m] >= 0 (default 0).
     """
 
-    point: Vec2
-    normal: Vec2
-    stiffness: float
-    damping: float = 0.0
-    position_jitter_m: float = 0.0
+    point: Vec2 = checked(vec2)
+    normal: Vec2 = checked(unit_vec2)
+    stiffness: float = checked(check_positive)
+    damping: float = checked(check_nonneg, 0.0)
+    position_jitter_m: float = checked(check_nonneg, 0.0)
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> CompliantWallSpec:
-
-        d = to_plain(cfg, key)
-        check_keys(key, d, ("point", "normal", "stiffness", "damping", "position_jitter_m"))
-        _require(key, d, ("point", "normal", "stiffness"))
-        nx, ny = vec2(f"{key}.normal", d["normal"])
-        norm = math.hypot(nx, ny)
-        if norm < 1e-9:
-            raise ConfigError(f"{key}.normal", f"must be a non-zero vector, got {d['normal']!r}")
-        return cls(
-            point=vec2(f"{key}.point", d["point"]),
-            normal=(nx / norm, ny / norm),
-            stiffness=check_positive(f"{key}.stiffness", d["stiffness"]),
-            damping=check_nonneg(f"{key}.damping", d.get("damping", 0.0)),
-            position_jitter_m=check_nonneg(
-                f"{key}.position_jitter_m", d.get("position_jitter_m", 0.0)
-            ),
-        )
+        return cls(**field_values(cls, cfg, key)[0])
 
 
 @dataclass(frozen=True)
@@ -107,49 +108,26 @@ class HumanSpec:
         ramp_s: rise time of the force after ``active_after_s`` [s] >= 0 (default 0: a step).
     """
 
-    goals: tuple[Vec2, ...]
-    stiffness: float
-    max_force: float
-    goal_index: int = 0
-    damping: float = 0.0
-    noise_std: float = 0.0
-    noise_cutoff_hz: float = 5.0
-    active_after_s: float = 0.0
-    ramp_s: float = 0.0
+    goals: tuple[Vec2, ...] = checked(_goals)
+    stiffness: float = checked(check_positive)
+    max_force: float = checked(check_positive)
+    goal_index: int = checked(_any, 0)  # checked against the goals in from_mapping
+    damping: float = checked(check_nonneg, 0.0)
+    noise_std: float = checked(check_nonneg, 0.0)
+    noise_cutoff_hz: float = checked(check_positive, 5.0)
+    active_after_s: float = checked(check_nonneg, 0.0)
+    ramp_s: float = checked(check_nonneg, 0.0)
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> HumanSpec:
-
-        d = to_plain(cfg, key)
-        check_keys(key, d, (
-            "goals", "goal_index", "stiffness", "damping", "max_force", "noise_std",
-            "noise_cutoff_hz", "active_after_s", "ramp_s",
-        ))  # fmt: skip
-        _require(key, d, ("goals", "stiffness", "max_force"))
-        goals = tuple(
-            vec2(f"{key}.goals[{i}]", g) for i, g in enumerate(as_list(f"{key}.goals", d["goals"]))
-        )
-        if not goals:
-            raise ConfigError(f"{key}.goals", "must hold at least one goal [x, y]")
-        idx = d.get("goal_index", 0)
-        if isinstance(idx, bool) or not isinstance(idx, int) or not -1 <= idx < len(goals):
+        spec = cls(**field_values(cls, cfg, key)[0])
+        idx, n = spec.goal_index, len(spec.goals)
+        if isinstance(idx, bool) or not isinstance(idx, int) or not -1 <= idx < n:
             raise ConfigError(
                 f"{key}.goal_index",
-                f"must be an integer in [0, {len(goals) - 1}] or -1 (random), got {idx!r}",
+                f"must be an integer in [0, {n - 1}] or -1 (random), got {idx!r}",
             )
-        return cls(
-            goals=goals,
-            stiffness=check_positive(f"{key}.stiffness", d["stiffness"]),
-            max_force=check_positive(f"{key}.max_force", d["max_force"]),
-            goal_index=int(idx),
-            damping=check_nonneg(f"{key}.damping", d.get("damping", 0.0)),
-            noise_std=check_nonneg(f"{key}.noise_std", d.get("noise_std", 0.0)),
-            noise_cutoff_hz=check_positive(
-                f"{key}.noise_cutoff_hz", d.get("noise_cutoff_hz", cls.noise_cutoff_hz)
-            ),
-            active_after_s=check_nonneg(f"{key}.active_after_s", d.get("active_after_s", 0.0)),
-            ramp_s=check_nonneg(f"{key}.ramp_s", d.get("ramp_s", 0.0)),
-        )
+        return spec
 
 
 @dataclass(frozen=True)
@@ -168,24 +146,11 @@ class VibrationSpec:
         noise_std: white noise std per axis [N] >= 0 (default 0).
     """
 
-    amplitude: Vec2
-    frequency_hz: float
-    region: RegionSpec | None = None
-    noise_std: float = 0.0
+    amplitude: Vec2 = checked(nonneg_vec2)
+    frequency_hz: float = checked(check_positive)
+    region: RegionSpec | None = checked(nested(RegionSpec.from_mapping), None)
+    noise_std: float = checked(check_nonneg, 0.0)
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> VibrationSpec:
-
-        d = to_plain(cfg, key)
-        check_keys(key, d, ("amplitude", "frequency_hz", "region", "noise_std"))
-        _require(key, d, ("amplitude", "frequency_hz"))
-        amp = vec2(f"{key}.amplitude", d["amplitude"])
-        for i, a in enumerate(amp):
-            check_nonneg(f"{key}.amplitude[{i}]", a)
-        region = d.get("region")
-        return cls(
-            amplitude=amp,
-            frequency_hz=check_positive(f"{key}.frequency_hz", d["frequency_hz"]),
-            region=None if region is None else RegionSpec.from_mapping(region, f"{key}.region"),
-            noise_std=check_nonneg(f"{key}.noise_std", d.get("noise_std", 0.0)),
-        )
+        return cls(**field_values(cls, cfg, key)[0])

@@ -8,7 +8,15 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from ccm.core.errors import ConfigError, check_keys, check_positive, check_vector, to_plain
+from ccm.core.errors import (
+    ConfigError,
+    check_keys,
+    check_nonneg,
+    check_positive,
+    check_range,
+    check_vector,
+    to_plain,
+)
 
 Vec2 = tuple[float, float]
 
@@ -17,6 +25,27 @@ def vec2(key: str, value: Any) -> Vec2:
     """``value`` as a finite 2-vector ``(x, y)``; ConfigError naming ``key`` otherwise."""
     arr = check_vector(key, value, 2)
     return (float(arr[0]), float(arr[1]))
+
+
+def positive_vec2(key: str, value: Any) -> Vec2:
+    """A 2-vector whose entries are > 0 (errors name ``key[i]``)."""
+    out = vec2(key, value)
+    for i, v in enumerate(out):
+        check_positive(f"{key}[{i}]", v)
+    return out
+
+
+def nonneg_vec2(key: str, value: Any) -> Vec2:
+    """A 2-vector whose entries are >= 0 (errors name ``key[i]``)."""
+    out = vec2(key, value)
+    for i, v in enumerate(out):
+        check_nonneg(f"{key}[{i}]", v)
+    return out
+
+
+def check_restitution(key: str, value: Any) -> float:
+    """A coefficient of restitution, in [0, 1]."""
+    return check_range(key, value, 0.0, 1.0)
 
 
 def as_list(key: str, value: Any) -> list[Any]:

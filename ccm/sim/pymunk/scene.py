@@ -15,6 +15,7 @@ disturbance -- are specified in :mod:`ccm.sim.pymunk.hri` and re-exported here.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,11 +27,18 @@ from ccm.core.errors import (
     check_keys,
     check_nonneg,
     check_positive,
-    check_range,
     to_plain,
 )
+from ccm.core.fields import checked, field_values, nested
 from ccm.sim.pymunk.hri import CompliantWallSpec, HumanSpec, VibrationSpec
-from ccm.sim.pymunk.parse import RegionSpec, Vec2, as_list, vec2
+from ccm.sim.pymunk.parse import (
+    RegionSpec,
+    Vec2,
+    as_list,
+    check_restitution,
+    positive_vec2,
+    vec2,
+)
 
 # --------------------------------------------------------------------------- elements
 
@@ -45,20 +53,13 @@ class EESpec:
         rotate: if False (default) the rotation is locked (infinite moment of inertia).
     """
 
-    size: Vec2 = (0.05, 0.05)
-    mass: float = 1.0
-    rotate: bool = False
+    size: Vec2 = checked(positive_vec2, (0.05, 0.05))
+    mass: float = checked(check_positive, 1.0)
+    rotate: bool = checked(check_bool, False)
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> EESpec:
-        d = to_plain(cfg, key)
-        check_keys(key, d, ("size", "mass", "rotate"))
-        size = vec2(f"{key}.size", d.get("size", cls.size))
-        for i, s in enumerate(size):
-            check_positive(f"{key}.size[{i}]", s)
-        mass = check_positive(f"{key}.mass", d.get("mass", cls.mass))
-        rotate = check_bool(f"{key}.rotate", d.get("rotate", cls.rotate))
-        return cls(size=size, mass=mass, rotate=rotate)
+        return cls(**field_values(cls, cfg, key)[0])
 
 
 @dataclass(frozen=True)
@@ -89,11 +90,11 @@ class SurfaceSpec:
         patches: non-overlapping stretches with other friction, sorted by ``start``.
     """
 
-    a: Vec2
-    b: Vec2
-    friction: float = 0.5
-    restitution: float = 0.0
-    radius: float = 0.002
+    a: Vec2 = checked(vec2, required="is required (segment endpoint [x, y] in m)")
+    b: Vec2 = checked(vec2, required="is required (segment endpoint [x, y] in m)")
+    friction: float = checked(check_nonneg, 0.5)
+    restitution: float = checked(check_restitution, 0.0)
+    radius: float = checked(check_nonneg, 0.002)
     patches: tuple[Patch, ...] = ()
 
     @property
@@ -115,17 +116,8 @@ class SurfaceSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> SurfaceSpec:
-        d = to_plain(cfg, key)
-        check_keys(key, d, ("a", "b", "friction", "restitution", "radius", "patches"))
-        for req in ("a", "b"):
-            if req not in d:
-                raise ConfigError(f"{key}.{req}", "is required (segment endpoint [x, y] in m)")
-        a = vec2(f"{key}.a", d["a"])
-        b = vec2(f"{key}.b", d["b"])
-        friction = check_nonneg(f"{key}.friction", d.get("friction", cls.friction))
-        restitution = _restitution(f"{key}.restitution", d.get("restitution", cls.restitution))
-        radius = check_nonneg(f"{key}.radius", d.get("radius", cls.radius))
-        surf = cls(a=a, b=b, friction=friction, restitution=restitution, radius=radius)
+        values, d = field_values(cls, cfg, key)
+        surf = cls(**values)
         if surf.length <= 0.0:
             raise ConfigError(f"{key}.b", "must differ from a (zero-length segment)")
         patches: list[Patch] = []
@@ -148,10 +140,7 @@ class SurfaceSpec:
         for prev, nxt in zip(patches, patches[1:], strict=False):
             if nxt.start < prev.end:
                 raise ConfigError(f"{key}.patches", f"patches overlap at {nxt.start:.6g} m")
-        return cls(
-            a=a, b=b, friction=friction, restitution=restitution, radius=radius,
-            patches=tuple(patches),
-        )  # fmt: skip
+        return dataclasses.replace(surf, patches=tuple(patches))
 
 
 @dataclass(frozen=True)
@@ -163,28 +152,14 @@ class BoxSpec:
         friction: Coulomb coefficient (default 0.5); restitution: in [0, 1] (default 0.0).
     """
 
-    center: Vec2
-    size: Vec2
-    friction: float = 0.5
-    restitution: float = 0.0
+    center: Vec2 = checked(vec2)
+    size: Vec2 = checked(positive_vec2)
+    friction: float = checked(check_nonneg, 0.5)
+    restitution: float = checked(check_restitution, 0.0)
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> BoxSpec:
-        d = to_plain(cfg, key)
-        check_keys(key, d, ("center", "size", "friction", "restitution"))
-        for req in ("center", "size"):
-            if req not in d:
-                raise ConfigError(f"{key}.{req}", "is required")
-        center = vec2(f"{key}.center", d["center"])
-        size = vec2(f"{key}.size", d["size"])
-        for i, s in enumerate(size):
-            check_positive(f"{key}.size[{i}]", s)
-        return cls(
-            center=center,
-            size=size,
-            friction=check_nonneg(f"{key}.friction", d.get("friction", cls.friction)),
-            restitution=_restitution(f"{key}.restitution", d.get("restitution", cls.restitution)),
-        )
+        return cls(**field_values(cls, cfg, key)[0])
 
 
 @dataclass(frozen=True)
@@ -202,11 +177,11 @@ class SpringSpec:
         or None (default: never detaches).
     """
 
-    anchor: Vec2
-    stiffness: float
-    rest_length: float = 0.0
-    attach_s: float = 0.0
-    detach_s: float | None = None
+    anchor: Vec2 = checked(vec2)
+    stiffness: float = checked(check_positive)
+    rest_length: float = checked(check_nonneg, 0.0)
+    attach_s: float = checked(check_nonneg, 0.0)
+    detach_s: float | None = checked(check_positive, None)
 
     @property
     def scheduled(self) -> bool:
@@ -215,22 +190,12 @@ class SpringSpec:
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> SpringSpec:
-        d = to_plain(cfg, key)
-        check_keys(key, d, ("anchor", "stiffness", "rest_length", "attach_s", "detach_s"))
-        for req in ("anchor", "stiffness"):
-            if req not in d:
-                raise ConfigError(f"{key}.{req}", "is required")
-        attach = check_nonneg(f"{key}.attach_s", d.get("attach_s", 0.0))
-        detach = d.get("detach_s")
-        if detach is not None and check_positive(f"{key}.detach_s", detach) <= attach:
-            raise ConfigError(f"{key}.detach_s", f"must be > attach_s={attach!r}, got {detach!r}")
-        return cls(
-            anchor=vec2(f"{key}.anchor", d["anchor"]),
-            stiffness=check_positive(f"{key}.stiffness", d["stiffness"]),
-            rest_length=check_nonneg(f"{key}.rest_length", d.get("rest_length", 0.0)),
-            attach_s=float(attach),
-            detach_s=None if detach is None else float(detach),
-        )
+        spec = cls(**field_values(cls, cfg, key)[0])
+        if spec.detach_s is not None and spec.detach_s <= spec.attach_s:
+            raise ConfigError(
+                f"{key}.detach_s", f"must be > attach_s={spec.attach_s!r}, got {spec.detach_s!r}"
+            )
+        return spec
 
 
 _SCHEDULE_KEYS = {
@@ -291,21 +256,12 @@ class ScheduleSpec:
 class ViscousSpec:
     """A viscous field: inside ``region`` (everywhere if ``None``) the EE feels ``F = -c v``."""
 
-    schedule: ScheduleSpec
-    region: RegionSpec | None = None
+    schedule: ScheduleSpec = checked(nested(ScheduleSpec.from_mapping))
+    region: RegionSpec | None = checked(nested(RegionSpec.from_mapping), None)
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> ViscousSpec:
-        d = to_plain(cfg, key)
-        check_keys(key, d, ("region", "schedule"))
-        if "schedule" not in d:
-            raise ConfigError(f"{key}.schedule", "is required")
-        region = None
-        if d.get("region") is not None:
-            region = RegionSpec.from_mapping(d["region"], f"{key}.region")
-        return cls(
-            schedule=ScheduleSpec.from_mapping(d["schedule"], f"{key}.schedule"), region=region
-        )
+        return cls(**field_values(cls, cfg, key)[0])
 
 
 @dataclass(frozen=True)
@@ -367,7 +323,3 @@ class SceneSpec:
 def parse_scene(cfg: Any, prefix: str = "task.scene") -> SceneSpec:
     """Parse a scene mapping (dict or ``DictConfig``); see :meth:`SceneSpec.from_mapping`."""
     return SceneSpec.from_mapping(cfg, prefix)
-
-
-def _restitution(key: str, value: Any) -> float:
-    return check_range(key, value, 0.0, 1.0)
