@@ -15,7 +15,7 @@ import dataclasses
 from collections.abc import Callable
 from typing import Any
 
-from ccm.core.errors import ConfigError, check_keys, to_plain
+from ccm.core.errors import ConfigError, check_keys, check_positive, check_vector, to_plain
 
 Check = Callable[[str, Any], Any]
 
@@ -62,3 +62,17 @@ def field_values(
             continue
         out[f.name] = f.metadata["check"](k, value)
     return out, d
+
+
+def vector(n: int, *, positive: bool = False) -> Check:
+    """A check: a finite ``n``-vector as a tuple of floats; with ``positive`` each entry must
+    be > 0 (errors name ``key[i]``)."""
+
+    def check(key: str, value: Any) -> tuple[float, ...]:
+        out = tuple(float(v) for v in check_vector(key, value, n))
+        if positive:
+            for i, v in enumerate(out):
+                check_positive(f"{key}[{i}]", v)
+        return out
+
+    return check

@@ -10,6 +10,7 @@ the ``boxes`` patch mode and the split of the contact ground truth into table an
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -27,6 +28,7 @@ from ccm.core.errors import (
     check_vector,
     to_plain,
 )
+from ccm.core.fields import checked, field_values, vector
 from ccm.sim.sensor import SensorConfig
 
 #: Franka's documented "ready" pose, used as IK seed and default rest posture [rad]
@@ -67,6 +69,10 @@ def _vec(key: str, value: Any, n: int) -> tuple[float, ...]:
     return tuple(float(v) for v in check_vector(key, value, n))
 
 
+def _restitution(key: str, value: Any) -> float:
+    return check_range(key, value, 0.0, 1.0)
+
+
 @dataclass(frozen=True)
 class ToolSpec:
     """The rigid block fixed to the flange.
@@ -76,18 +82,12 @@ class ToolSpec:
         mass: [kg] > 0.
     """
 
-    size: tuple[float, float, float] = (0.04, 0.04, 0.04)
-    mass: float = 0.15
+    size: tuple[float, float, float] = checked(vector(3, positive=True), (0.04, 0.04, 0.04))
+    mass: float = checked(check_positive, 0.15)
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> ToolSpec:
-        d = to_plain(cfg, key)
-        check_keys(key, d, ("size", "mass"))
-        size = _vec(f"{key}.size", d.get("size", cls.size), 3)
-        for i, s in enumerate(size):
-            check_positive(f"{key}.size[{i}]", s)
-        mass = check_positive(f"{key}.mass", d.get("mass", cls.mass))
-        return cls(size=(size[0], size[1], size[2]), mass=mass)
+        return cls(**field_values(cls, cfg, key)[0])
 
 
 @dataclass(frozen=True)
@@ -204,9 +204,9 @@ class TablePatch:
         center: [x, y] [m]; size: [w, d] full extents [m]; friction: Coulomb coefficient.
     """
 
-    center: tuple[float, float]
-    size: tuple[float, float]
-    friction: float
+    center: tuple[float, float] = checked(vector(2))
+    size: tuple[float, float] = checked(vector(2, positive=True))
+    friction: float = checked(check_nonneg)
 
     def bounds(self) -> tuple[float, float, float, float]:
         """``(x0, x1, y0, y1)``."""
@@ -225,26 +225,18 @@ class TableSpec:
         patches: non-overlapping friction patches inside the table.
     """
 
-    height: float
-    size: tuple[float, float] = (0.8, 1.0)
-    center: tuple[float, float] = (0.6, 0.0)
-    friction: float = 0.5
-    restitution: float = 0.0
+    height: float = checked(check_positive, required="is required (z of the table top in m)")
+    size: tuple[float, float] = checked(vector(2, positive=True), (0.8, 1.0))
+    center: tuple[float, float] = checked(vector(2), (0.6, 0.0))
+    friction: float = checked(check_nonneg, 0.5)
+    restitution: float = checked(_restitution, 0.0)
     patches: tuple[TablePatch, ...] = ()
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> TableSpec:
-        d = to_plain(cfg, key)
-        check_keys(key, d, ("height", "size", "center", "friction", "restitution", "patches"))
-        if "height" not in d:
-            raise ConfigError(f"{key}.height", "is required (z of the table top in m)")
-        height = check_positive(f"{key}.height", d["height"])
-        size = _vec(f"{key}.size", d.get("size", cls.size), 2)
-        for i, s in enumerate(size):
-            check_positive(f"{key}.size[{i}]", s)
-        center = _vec(f"{key}.center", d.get("center", cls.center), 2)
-        friction = check_nonneg(f"{key}.friction", d.get("friction", cls.friction))
-        restitution = check_range(f"{key}.restitution", d.get("restitution", 0.0), 0.0, 1.0)
+        values, d = field_values(cls, cfg, key)
+        table = cls(**values)
+        center, size = table.center, table.size
         raw = d.get("patches")
         if raw is None:
             raw = []
@@ -255,19 +247,7 @@ class TableSpec:
         patches: list[TablePatch] = []
         for i, pcfg in enumerate(raw):
             pk = f"{key}.patches[{i}]"
-            pd = to_plain(pcfg, pk)
-            check_keys(pk, pd, ("center", "size", "friction"))
-            for req in ("center", "size", "friction"):
-                if req not in pd:
-                    raise ConfigError(f"{pk}.{req}", "is required")
-            psize = _vec(f"{pk}.size", pd["size"], 2)
-            for j, s in enumerate(psize):
-                check_positive(f"{pk}.size[{j}]", s)
-            p = TablePatch(
-                center=_vec(f"{pk}.center", pd["center"], 2),  # type: ignore[arg-type]
-                size=psize,  # type: ignore[arg-type]
-                friction=check_nonneg(f"{pk}.friction", pd["friction"]),
-            )
+            p = TablePatch(**field_values(TablePatch, pcfg, pk)[0])
             x0, x1, y0, y1 = p.bounds()
             eps = 1e-9
             if x0 < tx0 - eps or x1 > tx1 + eps or y0 < ty0 - eps or y1 > ty1 + eps:
@@ -277,10 +257,7 @@ class TableSpec:
                 if x0 < qx1 - eps and qx0 < x1 - eps and y0 < qy1 - eps and qy0 < y1 - eps:
                     raise ConfigError(f"{pk}.center", f"patch overlaps patches[{j}]")
             patches.append(p)
-        return cls(
-            height=height, size=size, center=center, friction=friction,  # type: ignore[arg-type]
-            restitution=restitution, patches=tuple(patches),
-        )  # fmt: skip
+        return dataclasses.replace(table, patches=tuple(patches))
 
 
 @dataclass(frozen=True)
@@ -292,27 +269,14 @@ class Box3DSpec:
         friction: Coulomb coefficient (default 0.5); restitution: in [0, 1] (default 0).
     """
 
-    center: tuple[float, float, float]
-    size: tuple[float, float, float]
-    friction: float = 0.5
-    restitution: float = 0.0
+    center: tuple[float, float, float] = checked(vector(3))
+    size: tuple[float, float, float] = checked(vector(3, positive=True))
+    friction: float = checked(check_nonneg, 0.5)
+    restitution: float = checked(_restitution, 0.0)
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> Box3DSpec:
-        d = to_plain(cfg, key)
-        check_keys(key, d, ("center", "size", "friction", "restitution"))
-        for req in ("center", "size"):
-            if req not in d:
-                raise ConfigError(f"{key}.{req}", "is required")
-        size = _vec(f"{key}.size", d["size"], 3)
-        for i, s in enumerate(size):
-            check_positive(f"{key}.size[{i}]", s)
-        return cls(
-            center=_vec(f"{key}.center", d["center"], 3),  # type: ignore[arg-type]
-            size=size,  # type: ignore[arg-type]
-            friction=check_nonneg(f"{key}.friction", d.get("friction", 0.5)),
-            restitution=check_range(f"{key}.restitution", d.get("restitution", 0.0), 0.0, 1.0),
-        )
+        return cls(**field_values(cls, cfg, key)[0])
 
 
 @dataclass(frozen=True)
