@@ -12,24 +12,43 @@ detach time after the attach time, a segment of non-zero length) stays in the sp
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
-from ccm.core.errors import ConfigError, check_keys, check_positive, check_vector, to_plain
+from ccm.core.errors import (
+    ConfigError,
+    check_choice,
+    check_keys,
+    check_positive,
+    check_vector,
+    to_plain,
+)
 
 Check = Callable[[str, Any], Any]
 
 
 def checked(
-    check: Check, default: Any = dataclasses.MISSING, *, required: str = "is required"
+    check: Check,
+    default: Any = dataclasses.MISSING,
+    *,
+    factory: Callable[[], Any] | None = None,
+    required: str = "is required",
 ) -> Any:
     """A dataclass field whose value :func:`field_values` checks with ``check(key, value)``.
 
-    Without ``default`` the key is required (``required`` is the error text when it is
-    missing). A ``None`` default makes the field optional: ``None`` is then not checked.
+    Without ``default`` or ``factory`` the key is required (``required`` is the error text
+    when it is missing). A ``None`` default makes the field optional: ``None`` is then not
+    checked.
     """
     meta = {"check": check, "required": required}
+    if factory is not None:
+        return dataclasses.field(default_factory=factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
+
+
+def one_of(options: Sequence[str]) -> Check:
+    """A check: one of ``options``."""
+    return lambda key, value: check_choice(key, value, options)
 
 
 def nested(parse: Callable[[Any, str], Any]) -> Check:
@@ -43,17 +62,18 @@ def field_values(
     """The checked values of ``cls``'s :func:`checked` fields found in ``cfg`` (missing
     optional ones left to their defaults), and ``cfg`` as a plain mapping.
 
-    Keys other than the fields of ``cls`` and ``extra`` (keys the caller parses itself) are
-    refused; a missing required field is refused with its ``required`` text.
+    Keys other than ``extra`` (keys the caller reads itself, listed first in the error) and
+    the fields of ``cls`` are refused; a missing required field is refused with its
+    ``required`` text.
     """
     d = to_plain(cfg, key)
     fields = [f for f in dataclasses.fields(cls) if "check" in f.metadata]
-    check_keys(key, d, [f.name for f in dataclasses.fields(cls)] + list(extra))
+    check_keys(key, d, [*extra, *(f.name for f in dataclasses.fields(cls))])
     out: dict[str, Any] = {}
     for f in fields:
         k = f"{key}.{f.name}"
         if f.name not in d:
-            if f.default is dataclasses.MISSING:
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
                 raise ConfigError(k, f.metadata["required"])
             continue
         value = d[f.name]

@@ -13,49 +13,30 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from ccm.core.errors import (
     ConfigError,
     check_bool,
-    check_choice,
     check_int_positive,
     check_keys,
     check_nonneg,
     check_positive,
     check_range,
-    check_vector,
     to_plain,
 )
-from ccm.core.fields import checked, field_values, vector
+from ccm.core.fields import checked, field_values, nested, one_of, vector
 from ccm.sim.sensor import SensorConfig
 
 #: Franka's documented "ready" pose, used as IK seed and default rest posture [rad]
 PANDA_READY = (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4)
 
-_SIM_KEYS = (
+#: keys of the ``sim`` group that are not backend settings
+_OTHER_SIM_KEYS = (
     "name",
     "description",
     "nominal_mass_kg",  # read by controllers (configs/controller/*.yaml), not the simulator
-    "dt",
-    "control_decimation",
-    "gui",
-    "solver_iterations",
-    "max_speed",
-    "tool",
-    "rest_posture",
-    "nullspace_stiffness",
-    "nullspace_damping",
-    "orientation_stiffness",
-    "orientation_damping",
-    "task_coriolis_compensation",
-    "contact_stiffness",
-    "contact_damping",
-    "patch_mode",
-    "footprint_grid",
-    "dynamics",
-    "sensor",
 )
 PATCH_MODES = ("friction_map", "footprint", "boxes")
 #: where the torque loop's model terms come from (``PyBullet3DConfig.dynamics``)
@@ -63,10 +44,6 @@ DYNAMICS = ("pinocchio", "pybullet")
 
 
 # --------------------------------------------------------------------------- config
-
-
-def _vec(key: str, value: Any, n: int) -> tuple[float, ...]:
-    return tuple(float(v) for v in check_vector(key, value, n))
 
 
 def _restitution(key: str, value: Any) -> float:
@@ -123,74 +100,37 @@ class PyBullet3DConfig:
         sensor: F/T sensor noise and bias (force (3,), torque (3,)).
     """
 
-    dt: float = 0.001
-    control_decimation: int = 1
-    gui: bool = False
-    solver_iterations: int = 50
-    max_speed: float = 5.0
-    tool: ToolSpec = field(default_factory=ToolSpec)
-    rest_posture: tuple[float, ...] = PANDA_READY
-    nullspace_stiffness: float = 10.0
-    nullspace_damping: float = 2.0
-    orientation_stiffness: float = 30.0
-    orientation_damping: float = 2.0
-    task_coriolis_compensation: bool = True
-    contact_stiffness: float = 1.0e5
-    contact_damping: float = 1.0e3
-    patch_mode: str = "friction_map"
-    footprint_grid: int = 32
-    dynamics: str = "pinocchio"
-    sensor: SensorConfig = field(default_factory=lambda: SensorConfig.ideal(3, 3))
+    dt: float = checked(check_positive, 0.001)
+    control_decimation: int = checked(check_int_positive, 1)
+    gui: bool = checked(check_bool, False)
+    solver_iterations: int = checked(check_int_positive, 50)
+    max_speed: float = checked(check_positive, 5.0)
+    tool: ToolSpec = checked(
+        nested(lambda cfg, key: ToolSpec.from_mapping(cfg, key)), factory=ToolSpec
+    )
+    rest_posture: tuple[float, ...] = checked(vector(7), PANDA_READY)
+    nullspace_stiffness: float = checked(check_nonneg, 10.0)
+    nullspace_damping: float = checked(check_nonneg, 2.0)
+    orientation_stiffness: float = checked(check_nonneg, 30.0)
+    orientation_damping: float = checked(check_nonneg, 2.0)
+    task_coriolis_compensation: bool = checked(check_bool, True)
+    contact_stiffness: float = checked(check_positive, 1.0e5)
+    contact_damping: float = checked(check_positive, 1.0e3)
+    patch_mode: str = checked(one_of(PATCH_MODES), "friction_map")
+    footprint_grid: int = checked(check_int_positive, 32)
+    dynamics: str = checked(one_of(DYNAMICS), "pinocchio")
+    sensor: SensorConfig = checked(
+        nested(lambda cfg, key: SensorConfig.from_mapping(cfg, 3, 3, key)),
+        factory=lambda: SensorConfig.ideal(3, 3),
+    )
 
     @classmethod
     def from_mapping(cls, cfg: Any, prefix: str = "sim") -> PyBullet3DConfig:
         """Parse the ``sim`` config group; errors name keys as ``sim.<field>``."""
-        d = to_plain(cfg, prefix)
-        check_keys(prefix, d, _SIM_KEYS)
+        values, d = field_values(cls, cfg, prefix, extra=_OTHER_SIM_KEYS)
         if "name" in d and d["name"] != "pybullet3d":
             raise ConfigError(f"{prefix}.name", f"must be 'pybullet3d', got {d['name']!r}")
-        return cls(
-            dt=check_positive(f"{prefix}.dt", d.get("dt", cls.dt)),
-            control_decimation=check_int_positive(
-                f"{prefix}.control_decimation", d.get("control_decimation", 1)
-            ),
-            gui=check_bool(f"{prefix}.gui", d.get("gui", False)),
-            solver_iterations=check_int_positive(
-                f"{prefix}.solver_iterations", d.get("solver_iterations", cls.solver_iterations)
-            ),
-            max_speed=check_positive(f"{prefix}.max_speed", d.get("max_speed", cls.max_speed)),
-            tool=ToolSpec.from_mapping(d.get("tool"), f"{prefix}.tool"),
-            rest_posture=_vec(f"{prefix}.rest_posture", d.get("rest_posture", PANDA_READY), 7),
-            nullspace_stiffness=check_nonneg(
-                f"{prefix}.nullspace_stiffness", d.get("nullspace_stiffness", 10.0)
-            ),
-            nullspace_damping=check_nonneg(
-                f"{prefix}.nullspace_damping", d.get("nullspace_damping", 2.0)
-            ),
-            orientation_stiffness=check_nonneg(
-                f"{prefix}.orientation_stiffness", d.get("orientation_stiffness", 30.0)
-            ),
-            orientation_damping=check_nonneg(
-                f"{prefix}.orientation_damping", d.get("orientation_damping", 2.0)
-            ),
-            task_coriolis_compensation=check_bool(
-                f"{prefix}.task_coriolis_compensation", d.get("task_coriolis_compensation", True)
-            ),
-            contact_stiffness=check_positive(
-                f"{prefix}.contact_stiffness", d.get("contact_stiffness", cls.contact_stiffness)
-            ),
-            contact_damping=check_positive(
-                f"{prefix}.contact_damping", d.get("contact_damping", cls.contact_damping)
-            ),
-            patch_mode=check_choice(
-                f"{prefix}.patch_mode", d.get("patch_mode", cls.patch_mode), PATCH_MODES
-            ),
-            footprint_grid=check_int_positive(
-                f"{prefix}.footprint_grid", d.get("footprint_grid", cls.footprint_grid)
-            ),
-            dynamics=check_choice(f"{prefix}.dynamics", d.get("dynamics", cls.dynamics), DYNAMICS),
-            sensor=SensorConfig.from_mapping(d.get("sensor"), 3, 3, f"{prefix}.sensor"),
-        )
+        return cls(**values)
 
 
 # --------------------------------------------------------------------------- scene

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -52,11 +52,10 @@ from ccm.core.errors import (
     SimulationDiverged,
     check_bool,
     check_int_positive,
-    check_keys,
     check_positive,
     check_vector,
-    to_plain,
 )
+from ccm.core.fields import checked, field_values, nested
 from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim.base import Simulator
 from ccm.sim.pymunk._contacts import ContactReader
@@ -74,17 +73,11 @@ _MEAS_F, _MEAS_T = slice(11, 13), slice(13, 14)
 #: second entry of the seed sequence of the HRI elements' generator (walls, human, vibration)
 HRI_STREAM = 7
 
-_SIM_KEYS = (
+#: keys of the ``sim`` group that are not backend settings
+_OTHER_SIM_KEYS = (
     "name",
     "description",
     "nominal_mass_kg",  # read by controllers (configs/controller/*.yaml), not the simulator
-    "dt",
-    "control_decimation",
-    "iterations",
-    "collision_slop",
-    "gravity_compensation",
-    "max_speed",
-    "sensor",
 )
 
 
@@ -102,36 +95,24 @@ class Pymunk2DConfig:
         sensor: F/T sensor noise and bias.
     """
 
-    dt: float = 0.001
-    control_decimation: int = 1
-    iterations: int = 30
-    collision_slop: float = 1.0e-4
-    gravity_compensation: bool = True
-    max_speed: float = 20.0
-    sensor: SensorConfig = field(default_factory=SensorConfig.ideal)
+    dt: float = checked(check_positive, 0.001)
+    control_decimation: int = checked(check_int_positive, 1)
+    iterations: int = checked(check_int_positive, 30)
+    collision_slop: float = checked(check_positive, 1.0e-4)
+    gravity_compensation: bool = checked(check_bool, True)
+    max_speed: float = checked(check_positive, 20.0)
+    sensor: SensorConfig = checked(
+        nested(lambda cfg, key: SensorConfig.from_mapping(cfg, 2, 1, key)),
+        factory=SensorConfig.ideal,
+    )
 
     @classmethod
     def from_mapping(cls, cfg: Any, prefix: str = "sim") -> Pymunk2DConfig:
         """Parse the ``sim`` config group; errors name keys as ``sim.<field>``."""
-        d = to_plain(cfg, prefix)
-        check_keys(prefix, d, _SIM_KEYS)
+        values, d = field_values(cls, cfg, prefix, extra=_OTHER_SIM_KEYS)
         if "name" in d and d["name"] != "pymunk2d":
             raise ConfigError(f"{prefix}.name", f"must be 'pymunk2d', got {d['name']!r}")
-        return cls(
-            dt=check_positive(f"{prefix}.dt", d.get("dt", cls.dt)),
-            control_decimation=check_int_positive(
-                f"{prefix}.control_decimation", d.get("control_decimation", 1)
-            ),
-            iterations=check_int_positive(f"{prefix}.iterations", d.get("iterations", 30)),
-            collision_slop=check_positive(
-                f"{prefix}.collision_slop", d.get("collision_slop", cls.collision_slop)
-            ),
-            gravity_compensation=check_bool(
-                f"{prefix}.gravity_compensation", d.get("gravity_compensation", True)
-            ),
-            max_speed=check_positive(f"{prefix}.max_speed", d.get("max_speed", cls.max_speed)),
-            sensor=SensorConfig.from_mapping(d.get("sensor"), 2, 1, f"{prefix}.sensor"),
-        )
+        return cls(**values)
 
 
 class Pymunk2D(Simulator):
