@@ -155,6 +155,9 @@ class PyBullet3D(Simulator):
         self._robot = -1
         self._tool_link = -1
         self._arm = list(range(N_ARM))
+        self._sensed_joints = [*self._arm, -1]  # the arm, then the tool joint (set on reset)
+        self._q: np.ndarray | None = None  # the arm's joint state, read by _refresh_tip
+        self._dq: np.ndarray | None = None
         self._body_friction: dict[int, float] = {}
         self._box_bodies: set[int] = set()
         self._q_rest = np.zeros(N_ARM)
@@ -193,7 +196,7 @@ class PyBullet3D(Simulator):
     @property
     def joint_positions(self) -> np.ndarray:
         """Current arm joint angles [rad], shape (7,)."""
-        return self._joint_state()[0]
+        return self._joint_state()[0].copy()
 
     def reset(self, seed: int | None = None) -> tuple[Observation, StepInfo]:
         """(Re)connect, build the world, put the tool at the start pose at rest."""
@@ -216,6 +219,8 @@ class PyBullet3D(Simulator):
         self._read_joints = None  # a new world: nothing read from it yet
         self._build_scene()
         self._robot, self._tool_link = load_robot(p, cid, self.config)
+        self._sensed_joints = [*self._arm, self._tool_link]
+        self._q = self._dq = None
         self._tip_link = tool_point_in_link(p, cid, self._robot, self._tool_link, self._tip_local)
         if self.config.dynamics == "pinocchio" and self._dynamics is None:  # once: same robot
             self._dynamics = robot_dynamics(p, cid, self._robot, self.config.tool, self._tip_link)
@@ -342,7 +347,8 @@ class PyBullet3D(Simulator):
     def joint_state(self) -> tuple[np.ndarray, np.ndarray]:
         """The arm's joint encoders (q [rad], q̇ [rad/s], 7 each): the robot's own measurement,
         for offline learners that work in joint space (seed A §4.4.1); never an Observation."""
-        return self._joint_state()
+        q, dq = self._joint_state()
+        return q.copy(), dq.copy()
 
     def _recorded_joints(self) -> np.ndarray:
         """The joint angles after the last physics step, for the record; kept for the next
@@ -351,20 +357,27 @@ class PyBullet3D(Simulator):
         return self._read_joints[0]
 
     def _joint_state(self) -> tuple[np.ndarray, np.ndarray]:
-        states = self._p.getJointStates(self._robot, self._arm, physicsClientId=self._client)
-        q = np.array([s[0] for s in states])
-        dq = np.array([s[1] for s in states])
-        return q, dq
+        """``(q, q̇)`` as :meth:`_refresh_tip` last read them: every change of the joint state
+        (a physics step, the placement at reset) is followed by a refresh."""
+        if self._q is None:
+            raise RuntimeError("PyBullet3D: no joint state before reset()")
+        return self._q, self._dq
 
     def _refresh_tip(self) -> None:
-        """Read the tool once per physics step: ``self._tip`` = the tool point's position,
-        orientation (x, y, z, w), linear and angular velocity, shared by every use within the
-        step (patch friction, orientation hold, truth, observation), and ``self._ft`` = the
+        """Read the robot once per physics step: the arm's joint encoders (``self._q``,
+        ``self._dq``: the next step's torques, :meth:`joint_state`) and the tool:
+        ``self._tip`` = the tool point's position, orientation (x, y, z, w), linear and angular
+        velocity, shared by every use within the step (patch friction, orientation hold,
+        truth, observation), and ``self._ft`` = the
         external force and moment at the tool point from the tool joint's F/T reading
         (Newton–Euler balance of the tool, :func:`ccm.sim.pybullet._kernels.tool_sense`)."""
         p, cid, robot, link = self._p, self._client, self._robot, self._tool_link
         ls = p.getLinkState(robot, link, 1, 1, physicsClientId=cid)
-        reading = p.getJointState(robot, link, physicsClientId=cid)[2]
+        # one query for the arm's encoders and the tool joint's F/T reading (its last entry)
+        states = p.getJointStates(robot, self._sensed_joints, physicsClientId=cid)
+        reading = states[N_ARM][2]
+        self._q = np.array([s[0] for s in states[:N_ARM]])
+        self._dq = np.array([s[1] for s in states[:N_ARM]])
         state = np.array(ls[0] + ls[1] + ls[6] + ls[7])
         tip, self._rot, wrench = tool_sense(
             state, np.array(reading), self._tip_local_arr, self._twist_prev,
