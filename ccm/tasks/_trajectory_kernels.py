@@ -1,6 +1,6 @@
 """Numba kernels behind :class:`ccm.tasks.trajectory.MotionPattern.sample` (the per-step path).
 
-The readable definitions stay in :mod:`ccm.tasks.trajectory` (``min_jerk`` and each
+The readable definitions stay in :mod:`ccm.tasks.segments` (``min_jerk`` and each
 segment's ``_coeffs``); the kernels here repeat the same arithmetic, operation for operation,
 so that a sample is what ``np.array(seg._coeffs(t)) @ seg._basis`` gives, in one compiled
 call instead of a Python list, an array conversion and a matrix product (~2-3 µs of a 1 ms
@@ -40,7 +40,7 @@ def _dot3(c0: float, c1: float, c2: float, b0: float, b1: float, b2: float) -> f
 
 @njit(cache=True)
 def _min_jerk(tau: float, duration: float) -> tuple[float, float, float]:
-    """s, ds/dt, d²s/dt² of :func:`~ccm.tasks.trajectory.min_jerk`, operation for operation."""
+    """s, ds/dt, d²s/dt² of :func:`~ccm.tasks.segments.min_jerk`, operation for operation."""
     tau2 = tau * tau
     one_minus = 1.0 - tau
     s = tau2 * tau * (10.0 + tau * (6.0 * tau - 15.0))
@@ -51,7 +51,7 @@ def _min_jerk(tau: float, duration: float) -> tuple[float, float, float]:
 
 @njit(cache=True)
 def line_eval(t_local: float, duration: float, basis: np.ndarray) -> np.ndarray:
-    """``C(t) @ B`` of a min-jerk :class:`~ccm.tasks.trajectory.LineSegment`: rows position,
+    """``C(t) @ B`` of a min-jerk :class:`~ccm.tasks.segments.LineSegment`: rows position,
     velocity, acceleration, shape (3, n); ``C(t)`` = [[1 − s, s], [−ṡ, ṡ], [−s̈, s̈]] and
     ``B`` = [start, end], each entry accumulated as numpy's product does (two terms:
     ``fma(c1, b1, c0 b0)``)."""
