@@ -74,3 +74,24 @@ def test_bad_fault_settings(kwargs: dict, key: str) -> None:
     with pytest.raises(ConfigError) as err:
         SensorConfig.from_values(**kwargs)
     assert key in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("force_std", "torque_std"), [(0.05, 0.0), (0.0, 0.01), ([0.05, 0.1], 0.02)]
+)
+def test_noise_drawn_ahead_is_the_per_call_stream(force_std, torque_std) -> None:  # noqa: ANN001
+    """Drawing the noise ahead (AHEAD calls at a time) gives, call by call and across block
+    boundaries and resets, exactly the samples of one draw per call (force axes, then torque)."""
+    from ccm.sim.sensor import AHEAD
+
+    cfg = SensorConfig.from_values(force_noise_std=force_std, torque_noise_std=torque_std)
+    s = FTSensor(cfg)
+    f, t = np.array([1.0, -2.0]), np.array([0.5])
+    for seed in (3, 4):  # a reset mid-block starts the new generator's stream
+        s.reset(np.random.default_rng(seed))
+        rng = np.random.default_rng(seed)
+        for _ in range(AHEAD + 7 if seed == 3 else 5):
+            fm, tm = s.measure(f, t)
+            want_f = f + rng.normal(0.0, 1.0, 2) * s._f_std if s._noisy_force else f  # noqa: SLF001
+            want_t = t + rng.normal(0.0, 1.0, 1) * s._t_std if s._noisy_torque else t  # noqa: SLF001
+            assert np.array_equal(fm, want_f) and np.array_equal(tm, want_t)

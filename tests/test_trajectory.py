@@ -446,3 +446,20 @@ def test_arc_kernel_is_bit_identical_to_the_readable_product(seg: ArcSegment) ->
     for t in np.linspace(0.0, seg.duration, 997):
         readable = np.array(seg._coeffs(float(t))) @ seg._basis
         np.testing.assert_array_max_ulp(seg._eval(float(t)), readable, maxulp=1)
+
+
+@pytest.mark.parametrize(
+    "seg",
+    [
+        LineSegment([0.3, 0.2], [-0.2, 0.45], duration=1.0),
+        LineSegment([0.0, 0.1], [0.8, 0.02], duration=6.0, force_dir=[0.0, -1.0], force_mag=10.0),
+        LineSegment([0.45, -0.1, 0.3], [0.6, 0.2, 0.031], duration=2.5),
+        LineSegment([0.4, 0.0, 0.2], [0.4, 0.0, 0.1], duration=1.0, end_speed=0.1),
+    ],
+)
+def test_line_kernel_is_bit_identical_to_the_readable_product(seg: LineSegment) -> None:
+    """The compiled min-jerk line sample equals C(t) @ B (as the arc kernel; a line that
+    arrives at speed keeps the readable product)."""
+    for t in np.linspace(0.0, seg.duration, 997):
+        readable = np.array(seg._coeffs(float(t))) @ seg._basis
+        np.testing.assert_array_max_ulp(seg._eval(float(t)), readable, maxulp=1)

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ccm.core.errors import ConfigError, check_finite, check_nonneg, check_positive, check_vector
-from ccm.tasks._trajectory_kernels import arc_eval
+from ccm.tasks._trajectory_kernels import arc_eval, line_eval
 
 #: Relative tolerance for "start − center is perpendicular to the arc normal" (3D arcs).
 _PLANE_TOL = 1e-6
@@ -209,6 +209,13 @@ class LineSegment(Segment):
     def _coeffs(self, t_local: float) -> list[list[float]]:
         s, sd, sdd = self._scaling(t_local / self.duration)
         return [[1.0 - s, s], [-sd, sd], [-sdd, sdd]]
+
+    def _eval(self, t_local: float) -> np.ndarray:
+        # compiled C(t) @ B for min-jerk timing, bit-for-bit the readable version
+        # (Segment._eval with _coeffs); a line that arrives at speed takes the readable path
+        if self._w == 0.0:
+            return line_eval(t_local, self.duration, self._basis)
+        return super()._eval(t_local)
 
     def _coeffs_many(self, t_local: np.ndarray) -> np.ndarray:
         s, sd, sdd = self._scaling(t_local / self.duration)

@@ -155,6 +155,9 @@ class PyBullet3D(Simulator):
         self._robot = -1
         self._tool_link = -1
         self._arm = list(range(N_ARM))
+        self._sensed_joints = [*self._arm, -1]  # the arm, then the tool joint (set on reset)
+        self._q: np.ndarray | None = None  # the arm's joint state, read by _refresh_tip
+        self._dq: np.ndarray | None = None
         self._body_friction: dict[int, float] = {}
         self._box_bodies: set[int] = set()
         self._q_rest = np.zeros(N_ARM)
@@ -166,8 +169,6 @@ class PyBullet3D(Simulator):
         self._table_contacts: list[tuple[Any, float]] = []  # last step's (position, N)
         self._steps = 0
         self._rng: np.random.Generator | None = None
-        #: (q, q̇) read by _output after the last physics step, until the torque law uses it
-        self._read_joints: tuple[np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def from_config(
@@ -193,7 +194,7 @@ class PyBullet3D(Simulator):
     @property
     def joint_positions(self) -> np.ndarray:
         """Current arm joint angles [rad], shape (7,)."""
-        return self._joint_state()[0]
+        return self._joint_state()[0].copy()
 
     def reset(self, seed: int | None = None) -> tuple[Observation, StepInfo]:
         """(Re)connect, build the world, put the tool at the start pose at rest."""
@@ -213,9 +214,10 @@ class PyBullet3D(Simulator):
         )
         self._body_friction = {}
         self._table_contacts = []
-        self._read_joints = None  # a new world: nothing read from it yet
         self._build_scene()
         self._robot, self._tool_link = load_robot(p, cid, self.config)
+        self._sensed_joints = [*self._arm, self._tool_link]
+        self._q = self._dq = None
         self._tip_link = tool_point_in_link(p, cid, self._robot, self._tool_link, self._tip_local)
         if self.config.dynamics == "pinocchio" and self._dynamics is None:  # once: same robot
             self._dynamics = robot_dynamics(p, cid, self._robot, self.config.tool, self._tip_link)
@@ -258,9 +260,9 @@ class PyBullet3D(Simulator):
                 f"non-finite command force={np.asarray(f_cmd).tolist()} "
                 f"torque={np.asarray(t_cmd).tolist()} at t={self._steps * self.dt:.3f} s"
             )
-        p, cid = self._p, self._client
+        p, cid, hold = self._p, self._client, self.control_decimation
         total: list[np.ndarray] = []  # sums of f, m, kf, km, split over the period
-        for k in range(self.control_decimation):
+        for k in range(hold):
             self._update_patch_friction()
             tau = self._torques(wrench)
             p.setJointMotorControlArray(
@@ -270,11 +272,12 @@ class PyBullet3D(Simulator):
             self._refresh_tip()
             self._steps += 1
             kf, km, n, mu, split = self._contacts()
-            parts = [*self._ft, kf, km, split]
-            total = parts if k == 0 else [a + b for a, b in zip(total, parts, strict=True)]
-        if self.control_decimation > 1:
-            total = [a / self.control_decimation for a in total]
-        f, m, kf, km, split = total
+            if hold > 1:
+                parts = [*self._ft, kf, km, split]
+                total = parts if k == 0 else [a + b for a, b in zip(total, parts, strict=True)]
+        if hold == 1:  # one physics step per control step (every shipped config): no means
+            return self._output(*self._ft, kf, km, n, mu, split)
+        f, m, kf, km, split = [a / hold for a in total]
         return self._output(f, m, kf, km, n, mu, split)
 
     def close(self) -> None:
@@ -342,29 +345,36 @@ class PyBullet3D(Simulator):
     def joint_state(self) -> tuple[np.ndarray, np.ndarray]:
         """The arm's joint encoders (q [rad], q̇ [rad/s], 7 each): the robot's own measurement,
         for offline learners that work in joint space (seed A §4.4.1); never an Observation."""
-        return self._joint_state()
+        q, dq = self._joint_state()
+        return q.copy(), dq.copy()
 
     def _recorded_joints(self) -> np.ndarray:
-        """The joint angles after the last physics step, for the record; kept for the next
-        step's torque law, which would read the same state (one read, not two, per step)."""
-        self._read_joints = self._joint_state()
-        return self._read_joints[0]
+        """The joint angles after the last physics step, for the record (the state
+        :meth:`_refresh_tip` read, which the next step's torque law uses too)."""
+        return self._joint_state()[0]
 
     def _joint_state(self) -> tuple[np.ndarray, np.ndarray]:
-        states = self._p.getJointStates(self._robot, self._arm, physicsClientId=self._client)
-        q = np.array([s[0] for s in states])
-        dq = np.array([s[1] for s in states])
-        return q, dq
+        """``(q, q̇)`` as :meth:`_refresh_tip` last read them: every change of the joint state
+        (a physics step, the placement at reset) is followed by a refresh."""
+        if self._q is None:
+            raise RuntimeError("PyBullet3D: no joint state before reset()")
+        return self._q, self._dq
 
     def _refresh_tip(self) -> None:
-        """Read the tool once per physics step: ``self._tip`` = the tool point's position,
-        orientation (x, y, z, w), linear and angular velocity, shared by every use within the
-        step (patch friction, orientation hold, truth, observation), and ``self._ft`` = the
-        external force and moment at the tool point from the tool joint's F/T reading
-        (Newton–Euler balance of the tool, :func:`ccm.sim.pybullet._kernels.tool_sense`)."""
+        """Read the robot once per physics step: the arm's joint encoders (``self._q``,
+        ``self._dq``: the next step's torques, :meth:`joint_state`) and the tool:
+        ``self._tip`` = the tool point's position, orientation (x, y, z, w), linear and angular
+        velocity, shared by every use within the step (patch friction, orientation hold,
+        truth, observation), and ``self._ft`` = the external force and moment at the tool
+        point from the tool joint's F/T reading (Newton–Euler balance of the tool,
+        :func:`ccm.sim.pybullet._kernels.tool_sense`)."""
         p, cid, robot, link = self._p, self._client, self._robot, self._tool_link
         ls = p.getLinkState(robot, link, 1, 1, physicsClientId=cid)
-        reading = p.getJointState(robot, link, physicsClientId=cid)[2]
+        # one query for the arm's encoders and the tool joint's F/T reading (its last entry)
+        states = p.getJointStates(robot, self._sensed_joints, physicsClientId=cid)
+        q, dq, reactions, _ = zip(*states, strict=True)  # columns: q, q̇, reaction, torque
+        reading = reactions[N_ARM]
+        self._q, self._dq = np.array(q[:N_ARM]), np.array(dq[:N_ARM])
         state = np.array(ls[0] + ls[1] + ls[6] + ls[7])
         tip, self._rot, wrench = tool_sense(
             state, np.array(reading), self._tip_local_arr, self._twist_prev,
@@ -384,9 +394,7 @@ class PyBullet3D(Simulator):
         """τ = Jᵀ W + h(q, q̇) − Jᵀ Λ J̇ q̇ + N τ₀ (module docstring): compiled on Pinocchio's
         terms (``sim.dynamics: pinocchio``), else :meth:`_torques_pybullet`."""
         cfg = self.config
-        # the state _output read after the last physics step, if nothing has stepped since
-        q, dq = self._read_joints if self._read_joints is not None else self._joint_state()
-        self._read_joints = None
+        q, dq = self._joint_state()  # read after the last physics step (_refresh_tip)
         if not all_finite(q, dq):
             raise SimulationDiverged(
                 f"non-finite joint state at t={self._steps * self.dt:.3f} s: q={q.tolist()}"
@@ -396,7 +404,8 @@ class PyBullet3D(Simulator):
         minv, jac, jdq, h = self._dynamics.torque_terms(q, dq)
         self._hold[6:10] = self._orn
         self._hold[10:] = self._tip[3]
-        self._posture[2 + 7 :] = np.concatenate([q, dq])
+        self._posture[2 + N_ARM : 2 + 2 * N_ARM] = q
+        self._posture[2 + 2 * N_ARM :] = dq
         return torque_law(
             minv, jac, jdq, h, wrench, self._hold, self._posture, cfg.task_coriolis_compensation
         )
@@ -450,7 +459,8 @@ class PyBullet3D(Simulator):
         (:func:`ccm.sim.pybullet.robot.contact_truth`)."""
         p, cid = self._p, self._client
         pts = p.getContactPoints(bodyA=self._robot, linkIndexA=self._tool_link, physicsClientId=cid)
-        self._table_contacts = [(c[6], c[9]) for c in pts if c[2] == self._table_body]
+        if self._patch_map:  # read by the next step's patch friction (footprint mode) only
+            self._table_contacts = [(c[6], c[9]) for c in pts if c[2] == self._table_body]
         if not pts:
             return np.zeros(3), np.zeros(3), 0, -1.0, np.zeros(6)
         tip = self._tip[0]
@@ -475,6 +485,7 @@ class PyBullet3D(Simulator):
                 f"(position={pos.tolist()}, velocity={lin.tolist()})"
             )
         f_meas, t_meas = self.sensor.measure(f_sensed, t_sensed)
+        table_n, box_n, box_f, nx, ny, nz = split.tolist()
         obs = Observation(
             t=self._steps * self.dt,
             position=pos,
@@ -493,13 +504,13 @@ class PyBullet3D(Simulator):
                 "surface_friction": mu if n > 0 else -1.0,
                 "table_friction": self._table_mu,  # the table's friction this step (patches)
                 "contact": 1.0 if n > 0 else 0.0,
-                "table_normal_N": float(split[0]),  # normal force from the table [N]
-                "box_normal_N": float(split[1]),  # ... from scene.boxes (walls) [N]
-                "box_friction_N": float(split[2]),  # |friction force| from the boxes [N]
+                "table_normal_N": table_n,  # normal force from the table [N]
+                "box_normal_N": box_n,  # ... from scene.boxes (walls) [N]
+                "box_friction_N": box_f,  # |friction force| from the boxes [N]
                 # the normal part of the contact force (friction left out) [N]
-                "normal_force_x": float(split[3]),
-                "normal_force_y": float(split[4]),
-                "normal_force_z": float(split[5]),
+                "normal_force_x": nx,
+                "normal_force_y": ny,
+                "normal_force_z": nz,
                 # the arm's joint angles [rad] (q1_rad ... q7_rad): what `ccm animate` replays
                 **dict(zip(_JOINT_KEYS, self._recorded_joints().tolist(), strict=True)),
             },
