@@ -135,7 +135,7 @@ def test_collision_and_impactless_weights_sum_to_at_most_one(pattern) -> None:
         assert s["transition_alpha"] <= 1.0 + 1e-12
         k = s["stiffness_Npm"]
         if k_prev is not None and 0.2 < t < 0.4:
-            assert abs(k - k_prev) < 0.01 * (c.k_max - c.k_collision)  # no jump
+            assert abs(k - k_prev) < 0.01 * (c.base.k_max - c.k_collision)  # no jump
         k_prev = k
     assert k_prev == pytest.approx(c.k_collision)  # collision window fully on
 
@@ -292,7 +292,7 @@ def test_collision_transition_keeps_the_press_across_the_motion(pattern) -> None
         return float(c.step(obs_at(0.0), tgt).force @ press)
 
     # across the motion: ~F_d (1 + k_fp) pressed down; along it: only K* x 0 + D* x v
-    assert command((0.05, 0.0)) == pytest.approx(10.0 * (1 + c.loop.force_kp), rel=0.05)
+    assert command((0.05, 0.0)) == pytest.approx(10.0 * (1 + c.base.loop.force_kp), rel=0.05)
     assert abs(command((0.0, -0.05))) < 10.0
 
 

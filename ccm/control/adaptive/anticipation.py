@@ -50,6 +50,7 @@ from ccm.control.adaptive.contact_events import ContactEvents, TransitionWindow
 from ccm.control.adaptive.modal import ModalAVIC
 from ccm.control.adaptive.replan import plan_passes, rate_changes, windows_ahead
 from ccm.control.adaptive.transition import KINDS, check_kinds, transition_force
+from ccm.control.base import Controller
 from ccm.core.errors import (
     ConfigError,
     check_keys,
@@ -69,7 +70,7 @@ _KEYS = (
 )  # fmt: skip
 
 
-class AnticipatoryAVIC(ContactEvents, ModalAVIC):
+class AnticipatoryAVIC(ContactEvents, Controller):
     """AVIC + Algorithm 1 + contact anticipation and transition handling (seed A §3.3–3.5).
 
     Args:
@@ -90,12 +91,22 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             transition controller that keep Eq. 8's u_ff: :mod:`ccm.control.adaptive.transition`),
             ``map`` (:class:`ContactMap` arguments) and ``collisions``
             (:class:`CollisionDetector` arguments).
-        **modal: the :class:`ModalAVIC` arguments.
+        base: the base controller (Eq. 4a-4c with Algorithm 1), or None to build one from
+            ``modal``.
+        **modal: the :class:`ModalAVIC` arguments when ``base`` is None.
+
+    The base controller is a member: its command is blended with the transition-phase
+    controllers', its signals and learned state are extended with the anticipation's.
     """
 
-    def __init__(self, anticipation: Mapping[str, Any] | None = None, **modal: Any) -> None:
-        super().__init__(**modal)
-        key = f"{modal.get('key', 'controller')}.anticipation"
+    def __init__(
+        self,
+        anticipation: Mapping[str, Any] | None = None,
+        base: ModalAVIC | None = None,
+        **modal: Any,
+    ) -> None:
+        self.base = base if base is not None else ModalAVIC(**modal)
+        key = f"{self.base.key}.anticipation"
         a = dict(anticipation or {})
         check_keys(key, a, _KEYS)
         self.ant_key = key
@@ -104,7 +115,9 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
             f"{key}.min_region_radius_m", a.get("min_region_radius_m", 0.0)
         )
         self.blend_s = check_positive(f"{key}.blend_s", a.get("blend_s", 0.2))
-        self.k_collision = check_positive(f"{key}.k_collision", a.get("k_collision", self.k_free))
+        self.k_collision = check_positive(
+            f"{key}.k_collision", a.get("k_collision", self.base.k_free)
+        )
         self.path_dt = check_positive(f"{key}.path_dt", a.get("path_dt", 0.005))
         self.order_gate = check_positive(f"{key}.association_gate", a.get("association_gate", 5.0))
         self.approach_cos_min = check_nonneg(
@@ -137,10 +150,15 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         )
         self.contact_map: ContactMap | None = None  # built at the first prepare(), then kept
 
-    BLOCKS = ("modes", "anticipation")
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> AnticipatoryAVIC:
+        """The ``anticipation`` block; everything else builds the base :class:`ModalAVIC`."""
+        base = ModalAVIC.from_config({k: v for k, v in cfg.items() if k != "anticipation"}, key)
+        return cls(anticipation=cfg.get("anticipation"), base=base)
 
     def reset(self, dim: int, control_dt: float) -> None:
         super().reset(dim, control_dt)
+        self.base.reset(dim, control_dt)
         self.detector.reset()
         self._windows: list[TransitionWindow] = []
         self._impacts0: list[int] = []
@@ -160,7 +178,8 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         self._force_hist: deque[tuple[float, np.ndarray]] = deque(maxlen=self._vel_hist.maxlen)
         self._resist_hist: deque[tuple[float, float]] = deque(maxlen=self._vel_hist.maxlen)
         self._new_direction(None)  # the stall and sliding-resistance state (ContactEvents)
-        self._signals.update(self._ant_signals(0.0, 0.0))
+        self._ant = self._ant_signals(0.0, 0.0)
+        self._stiffness: float | None = None  # K_p blended with the transition controllers
 
     def _force_along_motion(self, d: np.ndarray, target: TargetSample) -> bool:
         """Whether the force-controlled direction d points along the planned motion (|cos| >
@@ -169,6 +188,16 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         loop."""
         speed = math.sqrt(float(target.velocity @ target.velocity))
         return speed > 1e-9 and abs(float(d @ target.velocity)) > self.force_along_cos * speed
+
+    def signals(self) -> dict[str, float]:
+        """The base's signals (K_p blended while a transition controller acts) and the
+        anticipation's: ``transition_alpha``, ``collision_event``, ``n_contacts_believed``,
+        ``pattern_rate``."""
+        out = self.base.signals()
+        if self._stiffness is not None:
+            out["stiffness_Npm"] = self._stiffness
+        out.update(self._ant)
+        return out
 
     def _ant_signals(self, alpha: float, event: float) -> dict[str, float]:
         return {
@@ -234,15 +263,16 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
         event = self.detector.update_obs(obs)
         self._vel_hist.append((obs.t, target.velocity))
         self._force_hist.append((obs.t, obs.force.copy()))
-        if self._signals.get("mode_trigger") == 1.0:
+        base = self.base
+        if base.signal("mode_trigger") == 1.0:
             self._trigger_pos = obs.position.copy()
-        cmd = super().step(obs, target)
+        cmd = base.step(obs, target)
         self._impactless_event(obs)
         hit = self._contact_made(obs, target, event)
         cmd, alpha = self._blend_transitions(obs, target, cmd)
-        self._signals.update(self._ant_signals(alpha, hit))
+        self._ant = self._ant_signals(alpha, hit)
         if self._retimed is not None:
-            self._signals["pattern_rate"] = float(self._retimed.warp.rate(obs.t))
+            self._ant["pattern_rate"] = float(self._retimed.warp.rate(obs.t))
         return cmd
 
     def _contact_made(self, obs: Observation, target: TargetSample, event: Any) -> float:
@@ -296,12 +326,14 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                   default=0.0)  # fmt: skip
         a_i = min(a_i, 1.0 - a_c)
         alpha = a_c + a_i
+        self._stiffness = None
         if alpha > 0.0:
-            k1 = self._signals["stiffness_Npm"]
+            base = self.base
+            k1 = base.signal("stiffness_Npm")
             force = (1.0 - alpha) * cmd.force
-            ff = self.last_feedforward  # Eq. 8's u_ff, for the kinds configured to keep it
+            ff = base.last_feedforward  # Eq. 8's u_ff, for the kinds configured to keep it
             ff_c, ff_i = (ff if k in self.transition_ff else None for k in KINDS)
-            hyb = self.loop
+            hyb = base.loop
             d, u_fc = target.force_dir, hyb.last_force_loop
             m, m_ff = hyb.mass_kg, hyb.inertia_feedforward
             if a_c > 0.0:  # Eq. 1's force loop kept across the motion only
@@ -311,19 +343,17 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                     obs, target, gains, m, m_ff, u_fc if keep else None, ff_c
                 )
             if a_i > 0.0:
-                gains = (self.k_max, hyb.damping_for(self.k_max))
+                gains = (base.k_max, hyb.damping_for(base.k_max))
                 force += a_i * transition_force(obs, target, gains, m, m_ff, u_fc, ff_i)
             cmd = Command(force=force, torque=cmd.torque)
-            self._signals["stiffness_Npm"] = (
-                (1.0 - alpha) * k1 + a_c * self.k_collision + a_i * self.k_max
-            )
+            self._stiffness = (1.0 - alpha) * k1 + a_c * self.k_collision + a_i * base.k_max
         return cmd, alpha
 
     def _impactless_event(self, obs: Observation) -> None:
         """An Algorithm 1 decision that changes the mode is an impact-less contact event."""
-        s = self._signals
-        if s["mode_event"] > 0 and self._trigger_pos is not None and self.contact_map is not None:
-            if self._last_mode >= 0 and s["mode"] != self._last_mode:
+        event, mode = self.base.signal("mode_event"), self.base.signal("mode")
+        if event > 0 and self._trigger_pos is not None and self.contact_map is not None:
+            if self._last_mode >= 0 and mode != self._last_mode:
                 ev = self.contact_map.observe(
                     self._measured(self._trigger_pos), "impactless",
                     expected=self._expected(obs.t, "impactless"),
@@ -331,7 +361,7 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                 for w in self._windows:
                     if w.contact == ev.index and not w.done:
                         w.release, w.done = min(w.release, obs.t), True
-        self._last_mode = s["mode"]
+        self._last_mode = mode
 
     def _measured(self, position: np.ndarray) -> np.ndarray:
         """The contact position the robot measures when it detects a contact (§3.3: the
@@ -384,18 +414,18 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                 "approach_velocity": c.approach.velocities[-1] if made else None,
                 "impact_force": c.approach.forces[-1] if made else None,
             })  # fmt: skip
-        return {**super().report(), "contacts": out}
+        return {**self.base.report(), "contacts": out}
 
     def end_trial(self) -> None:
         """Kalman predict step for every belief (§3.3); models of every mode (ModalAVIC)."""
-        super().end_trial()
+        self.base.end_trial()
         if self.contact_map is not None:
             self.contact_map.end_trial()
 
     def state_dict(self) -> dict[str, Any]:
         """:meth:`ModalAVIC.state_dict` plus ``contact_map``: the contact beliefs and their
         approach-velocity models (:meth:`ContactMap.state_dict`; None before the first trial)."""
-        state = super().state_dict()
+        state = self.base.state_dict()
         state["contact_map"] = None if self.contact_map is None else self.contact_map.state_dict()
         return state
 
@@ -429,5 +459,5 @@ class AnticipatoryAVIC(ContactEvents, ModalAVIC):
                     )
             except STATE_ERRORS as exc:
                 raise state_error(exc) from None
-        super().load_state_dict({k: v for k, v in state.items() if k != "contact_map"})
+        self.base.load_state_dict({k: v for k, v in state.items() if k != "contact_map"})
         self.contact_map = cmap

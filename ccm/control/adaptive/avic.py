@@ -282,6 +282,11 @@ class AVIC(Controller):
     def signals(self) -> dict[str, float]:
         return dict(self._signals)
 
+    def signal(self, name: str) -> float:
+        """One signal of the last step, without the copy :meth:`signals` makes (for a
+        controller that holds this one, e.g. the anticipating one)."""
+        return self._signals[name]
+
     def _observe_error(self, err: float) -> None:
         """λ_t of Eq. 4c from ε̄_t (ε_t low-passed), or keep ε̄_t to calibrate ε₀ and r."""
         lp = self._err_lp
