@@ -167,17 +167,17 @@ def scene_costs(configs: Mapping[str, Path], budget_s: float = 1.5) -> dict[str,
     from omegaconf import OmegaConf
 
     from ccm.bench.engines import raw_cpu_per_step, raw_reset_cpu
-    from ccm.experiment.components import build_components
+    from ccm.experiment.components import build_sim_task
 
     out = {}
     for key, path in configs.items():
-        comp = build_components(OmegaConf.load(path))
+        sim, task = build_sim_task(OmegaConf.load(path))  # the run's controller is not needed
         try:
-            step_s = raw_cpu_per_step(comp.sim, comp.task.pattern, budget_s)
+            step_s = raw_cpu_per_step(sim, task.pattern, budget_s)
             out[key] = {"task": json.loads(key)["name"], "sim": json.loads(key)["sim"]["name"],
-                        "step_s": step_s, "reset_s": raw_reset_cpu(comp.sim)}  # fmt: skip
+                        "step_s": step_s, "reset_s": raw_reset_cpu(sim)}  # fmt: skip
         finally:
-            comp.sim.close()
+            sim.close()
     return out
 
 

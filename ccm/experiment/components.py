@@ -211,6 +211,15 @@ def load_state_dicts(init_from: Any, plan: Plan) -> None:
 
 def build_components(cfg: DictConfig) -> Components:
     """Build and validate simulator, task and controller from one composed config."""
+    sim, task = build_sim_task(cfg)
+    controller = make_controller(to_plain(cfg.controller))
+    controller.reset(task.dim, sim.control_dt)  # validates dimension-dependent gains
+    return Components(sim=sim, task=task, controller=controller)
+
+
+def build_sim_task(cfg: DictConfig) -> tuple[Simulator, Task]:
+    """The simulator and the task of one composed config (no controller: e.g. to time the
+    raw engine loop on a run's scene, whatever controller schema that run had)."""
     start = list(to_plain(cfg.task.get("start")) or [])
     orientation = to_plain(cfg.task.get("orientation"))
     if orientation and cfg.task.get("dim") == 3:  # the 3D start pose includes the tool's quaternion
@@ -220,9 +229,7 @@ def build_components(cfg: DictConfig) -> Components:
     sim = make_sim(to_plain(cfg.sim), to_plain(cfg.task.get("scene", {})), start)
     task = load_task(cfg.task, sim.control_dt)
     check_dims(task.dim, sim.dim, cfg)
-    controller = make_controller(to_plain(cfg.controller))
-    controller.reset(task.dim, sim.control_dt)  # validates dimension-dependent gains
-    return Components(sim=sim, task=task, controller=controller)
+    return sim, task
 
 
 def check_dims(task_dim: Any, sim_dim: int, cfg: DictConfig) -> None:
