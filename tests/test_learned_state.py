@@ -140,7 +140,10 @@ def test_anticipation_round_trip_keeps_the_contact_map(composer: Composer) -> No
     c.end_trial()
     fresh = build(composer, "controller=avic_anticipation")
     state = round_trip(c, fresh)
-    assert state["contact_map"]["trial"] == 1 and fresh.base.classifier.n_modes == c.base.classifier.n_modes
+    assert (
+        state["contact_map"]["trial"] == 1
+        and fresh.base.classifier.n_modes == c.base.classifier.n_modes
+    )
     (a, b) = (c.contact_map.contacts[0], fresh.contact_map.contacts[0])
     np.testing.assert_array_equal(b.belief.mean, a.belief.mean)
     np.testing.assert_array_equal(b.belief.cov, a.belief.cov)

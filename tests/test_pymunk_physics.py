@@ -15,7 +15,8 @@ from omegaconf import OmegaConf
 
 from ccm.core.errors import ConfigError, SimulationDiverged
 from ccm.core.types import Command, Observation, StepInfo
-from ccm.sim.pymunk.backend import Pymunk2D, Pymunk2DConfig
+from ccm.sim.pymunk.backend import Pymunk2D
+from ccm.sim.pymunk.config import Pymunk2DConfig
 from ccm.sim.pymunk.scene import SceneSpec
 from ccm.sim.sensor import FTSensor, SensorConfig
 

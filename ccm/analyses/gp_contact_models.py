@@ -139,7 +139,7 @@ def _settings(cfg: DictConfig) -> dict[str, Any]:
 
 
 def _control_dt(cfg: DictConfig) -> float:
-    from ccm.sim.pymunk.backend import Pymunk2DConfig
+    from ccm.sim.pymunk.config import Pymunk2DConfig
 
     sim = Pymunk2DConfig.from_mapping(cfg.sim, "sim")
     return sim.dt * sim.control_decimation
@@ -176,7 +176,8 @@ def simulate_demo(
     """
     from ccm.control.mpc.gp_mpc import GPMPC
     from ccm.core.types import TargetSample
-    from ccm.sim.pymunk.backend import Pymunk2D, Pymunk2DConfig
+    from ccm.sim.pymunk.backend import Pymunk2D
+    from ccm.sim.pymunk.config import Pymunk2DConfig
     from ccm.sim.pymunk.scene import SceneSpec
 
     wall_x, r, h = s["wall_x_m"], s["robot"], s["human"]
