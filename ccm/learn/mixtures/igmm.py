@@ -176,8 +176,13 @@ class IGMM:
         self.cov_floor = floor
         self.overflow = overflow
         self.key = key
+        self._allocate()
 
-        self._threshold = chi2_quantile(q, d)
+    def _allocate(self) -> None:
+        """The kernels' settings vector and the mixture buffers (:mod:`._igmm_kernels`)."""
+        d, kmax, floor = self.n_features, self.max_components, self.cov_floor
+        sp_min, v_min, overflow, sig = self.sp_min, self.v_min, self.overflow, self.sigma_init
+        self._threshold = chi2_quantile(self.novelty_chi2_quantile, d)
         self._params = np.zeros(_k.N_PARAMS)
         self._params[_k.P_THRESHOLD] = self._threshold
         self._params[_k.P_FLOOR] = floor
