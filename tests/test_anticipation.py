@@ -44,10 +44,10 @@ def test_speed_reaches_the_approach_velocity_at_p_c(pattern) -> None:
         0
     ].belief  # C: 2 sigma of P + R (ccm.control.adaptive.contact_regions)
     assert region_mask(belief, s.position[None, :], 2.0)[0]  # p_c is on the region's boundary
-    before = retimed.warp.inverse(retimed.warp.phi(t_c) - c.path_dt)  # the plan sample before
+    before = retimed.warp.inverse(retimed.warp.phi(t_c) - c.cfg.path_dt)  # the plan sample before
     assert not region_mask(belief, retimed.sample(before).position[None, :], 2.0)[0]
     assert retimed.duration > pattern.duration  # slower through C
-    assert w.alpha(w.t0, c.blend_s) == 0.0 and w.alpha(t_c, c.blend_s) == 1.0  # Eq. 10 ramp
+    assert w.alpha(w.t0, c.cfg.blend_s) == 0.0 and w.alpha(t_c, c.cfg.blend_s) == 1.0  # Eq. 10 ramp
 
 
 def test_contact_made_releases_the_transition_and_the_speed(pattern) -> None:
@@ -58,8 +58,10 @@ def test_contact_made_releases_the_transition_and_the_speed(pattern) -> None:
     phi_before = retimed.warp.phi(t_hit)
     c._release(0, t_hit)  # noqa: SLF001 - as a detected collision at the expected contact
     assert retimed.warp.phi(t_hit) == pytest.approx(phi_before, abs=1e-12)  # φ continuous
-    assert retimed.warp.rate(t_hit + c.blend_s + 1e-6) == pytest.approx(1.0)  # plan speed
-    assert w.alpha(t_hit + c.blend_s, c.blend_s) == pytest.approx(0.0, abs=1e-12)  # base again
+    assert retimed.warp.rate(t_hit + c.cfg.blend_s + 1e-6) == pytest.approx(1.0)  # plan speed
+    assert w.alpha(t_hit + c.cfg.blend_s, c.cfg.blend_s) == pytest.approx(
+        0.0, abs=1e-12
+    )  # base again
 
 
 def test_bad_settings_name_the_key() -> None:

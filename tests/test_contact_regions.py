@@ -116,4 +116,4 @@ def test_seed5_holds_are_not_stretched(seed5_plan) -> None:
     seg = [s.name for s in task.pattern.segments].index("press")
     t = np.arange(0.0, retimed.duration, 0.001)
     on = retimed.sample_many(t)["segment"] == seg
-    assert 0.5 <= on.sum() * 0.001 <= 0.5 + 0.5 * ctrl.blend_s + 0.005
+    assert 0.5 <= on.sum() * 0.001 <= 0.5 + 0.5 * ctrl.cfg.blend_s + 0.005

@@ -46,6 +46,12 @@ def checked(
     return dataclasses.field(default=default, metadata=meta)
 
 
+def unchecked(key: str, value: Any) -> Any:
+    """A check that accepts any value (the spec checks it against its other fields, or the
+    component that reads it does)."""
+    return value
+
+
 def one_of(options: Sequence[str]) -> Check:
     """A check: one of ``options``."""
     return lambda key, value: check_choice(key, value, options)

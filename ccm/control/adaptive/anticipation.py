@@ -46,28 +46,19 @@ from typing import Any
 
 import numpy as np
 
+from ccm.control.adaptive.anticipation_settings import AnticipationSettings
 from ccm.control.adaptive.contact_events import ContactEvents, TransitionWindow
 from ccm.control.adaptive.modal import ModalAVIC
 from ccm.control.adaptive.replan import plan_passes, rate_changes, windows_ahead
-from ccm.control.adaptive.transition import KINDS, check_kinds, transition_force
+from ccm.control.adaptive.transition import KINDS, transition_force
 from ccm.control.base import Controller
 from ccm.core.errors import (
     ConfigError,
-    check_keys,
-    check_nonneg,
-    check_positive,
 )
 from ccm.core.types import Command, Observation, TargetSample
 from ccm.learn.contact.collisions import CollisionDetector
 from ccm.learn.contact.contacts import ContactMap
 from ccm.tasks.retiming import RetimedPattern, TimeWarp
-
-_KEYS = (
-    "sigma_scale", "min_region_radius_m", "blend_s", "k_collision", "path_dt",
-    "init_noise_std", "init_std", "use_kinds", "stall_fraction", "stall_lookback_s",
-    "stall_travel_m", "detection_noise_std", "transition_feedforward",
-    "association_gate", "approach_cos_min", "force_along_cos", "map", "collisions",
-)  # fmt: skip
 
 
 class AnticipatoryAVIC(ContactEvents, Controller):
@@ -107,47 +98,11 @@ class AnticipatoryAVIC(ContactEvents, Controller):
     ) -> None:
         self.base = base if base is not None else ModalAVIC(**modal)
         key = f"{self.base.key}.anticipation"
-        a = dict(anticipation or {})
-        check_keys(key, a, _KEYS)
         self.ant_key = key
-        self.sigma_scale = check_positive(f"{key}.sigma_scale", a.get("sigma_scale", 3.0))
-        self.min_region_m = check_nonneg(
-            f"{key}.min_region_radius_m", a.get("min_region_radius_m", 0.0)
-        )
-        self.blend_s = check_positive(f"{key}.blend_s", a.get("blend_s", 0.2))
-        self.k_collision = check_positive(
-            f"{key}.k_collision", a.get("k_collision", self.base.k_free)
-        )
-        self.path_dt = check_positive(f"{key}.path_dt", a.get("path_dt", 0.005))
-        self.order_gate = check_positive(f"{key}.association_gate", a.get("association_gate", 5.0))
-        self.approach_cos_min = check_nonneg(
-            f"{key}.approach_cos_min", a.get("approach_cos_min", 0.5)
-        )
-        self.force_along_cos = check_nonneg(f"{key}.force_along_cos", a.get("force_along_cos", 0.5))
-        self.stall_fraction = check_positive(f"{key}.stall_fraction", a.get("stall_fraction", 0.2))
-        self.stall_travel_m = check_positive(
-            f"{key}.stall_travel_m", a.get("stall_travel_m", 0.003)
-        )
-        self.stall_lookback_s = check_nonneg(
-            f"{key}.stall_lookback_s", a.get("stall_lookback_s", 0.05)
-        )
-        self.init_noise_std = a.get("init_noise_std", 0.06)
-        self.detection_noise_std = check_nonneg(
-            f"{key}.detection_noise_std", a.get("detection_noise_std", 0.0)
-        )
+        self.cfg = cfg = AnticipationSettings.from_mapping(anticipation, key)
+        self.k_collision = self.base.k_free if cfg.k_collision is None else cfg.k_collision
         self._meas_rng: np.random.Generator | None = None
-        self.transition_ff = check_kinds(
-            f"{key}.transition_feedforward",
-            a.get("transition_feedforward", []),
-        )
-        self.init_std = a.get("init_std")
-        self.use_kinds = check_kinds(
-            f"{key}.use_kinds", a.get("use_kinds", ["collision", "impactless"])
-        )
-        self._map_args = dict(a.get("map") or {})
-        self.detector = CollisionDetector(
-            **dict(a.get("collisions") or {}), key=f"{key}.collisions"
-        )
+        self.detector = CollisionDetector(**cfg.collisions, key=f"{key}.collisions")
         self.contact_map: ContactMap | None = None  # built at the first prepare(), then kept
 
     @classmethod
@@ -171,7 +126,7 @@ class AnticipatoryAVIC(ContactEvents, Controller):
         self._last_mode = -1.0
         # (t, planned velocity) of the last ~0.2 s: a collision's v of Eq. 9 is the speed the
         # robot was *commanded* to approach with at the onset (the quantity Eq. 9 revises)
-        keep = self.stall_lookback_s + 2.0 * self.detector.peak_window_s + 0.2  # s of history
+        keep = self.cfg.stall_lookback_s + 2.0 * self.detector.peak_window_s + 0.2  # s of history
         self._vel_hist: deque[tuple[float, np.ndarray]] = deque(
             maxlen=max(2, round(keep / control_dt))
         )
@@ -187,7 +142,7 @@ class AnticipatoryAVIC(ContactEvents, Controller):
         motion (a press on the table while sliding into a wall) the hybrid law keeps its force
         loop."""
         speed = math.sqrt(float(target.velocity @ target.velocity))
-        return speed > 1e-9 and abs(float(d @ target.velocity)) > self.force_along_cos * speed
+        return speed > 1e-9 and abs(float(d @ target.velocity)) > self.cfg.force_along_cos * speed
 
     def signals(self) -> dict[str, float]:
         """The base's signals (K_p blended while a transition controller acts) and the
@@ -214,10 +169,10 @@ class AnticipatoryAVIC(ContactEvents, Controller):
     ) -> Any:
         """Build the beliefs once (trial 1), then re-time P around every expected collision."""
         if self.contact_map is None:
-            told = [c for c in contacts if c.get("kind", "collision") in self.use_kinds]
+            told = [c for c in contacts if c.get("kind", "collision") in self.cfg.use_kinds]
             self.contact_map = ContactMap.from_config(
-                told, rng, init_noise_std=self.init_noise_std, init_std=self.init_std,
-                dim=pattern.dim, key=f"{self.ant_key}.map", **self._map_args,
+                told, rng, init_noise_std=self.cfg.init_noise_std, init_std=self.cfg.init_std,
+                dim=pattern.dim, key=f"{self.ant_key}.map", **self.cfg.map,
             )  # fmt: skip
         self._pattern = pattern
         self._meas_rng = rng  # this trial's detection noise (:meth:`_measured`)
@@ -230,7 +185,11 @@ class AnticipatoryAVIC(ContactEvents, Controller):
             for c in self.contact_map.contacts
         ]
         self._slow, self._impactless = plan_passes(
-            self.contact_map.contacts, pattern, self.path_dt, self.sigma_scale, self.min_region_m
+            self.contact_map.contacts,
+            pattern,
+            self.cfg.path_dt,
+            self.cfg.sigma_scale,
+            self.cfg.min_region_radius_m,
         )
         self._changes, self._rate0 = [], 1.0
         self._replan(0.0)
@@ -243,11 +202,11 @@ class AnticipatoryAVIC(ContactEvents, Controller):
         warp = TimeWarp(changes, rate0=self._rate0)
         phi_from = float(warp.phi(t_from)) if t_from > 0 else 0.0
         warp, self._rate0 = rate_changes(
-            changes, warp, self._rate0, self._slow, self._hits, t_from, phi_from, self.blend_s
+            changes, warp, self._rate0, self._slow, self._hits, t_from, phi_from, self.cfg.blend_s
         )
         windows = [w for w in self._windows if w.t0 < t_from]
         windows += windows_ahead(
-            self._slow, self._impactless, self._hits, warp, t_from, phi_from, self.blend_s
+            self._slow, self._impactless, self._hits, warp, t_from, phi_from, self.cfg.blend_s
         )
         self._changes, self._windows = changes, windows
         if self._retimed is None:
@@ -288,7 +247,7 @@ class AnticipatoryAVIC(ContactEvents, Controller):
                 measured = {}  # the plan was not approaching: no Eq. 9 measurement
             ev = self.contact_map.observe(
                 z, "collision", **measured,
-                expected=self._in_sequence(z), expected_gate=self.order_gate,
+                expected=self._in_sequence(z), expected_gate=self.cfg.association_gate,
             )  # fmt: skip
             hit = 1.0
             self._release(ev.index, obs.t)
@@ -320,10 +279,9 @@ class AnticipatoryAVIC(ContactEvents, Controller):
         # the re-timed target, not the force loop, must set the approach speed) takes
         # precedence over the impact-less one (K* = K_max, force loop kept); weights
         # a_c + a_i <= 1, continuous in both.
-        a_c = max((w.alpha(obs.t, self.blend_s) for w in self._windows if w.kind == "collision"),
-                  default=0.0)  # fmt: skip
-        a_i = max((w.alpha(obs.t, self.blend_s) for w in self._windows if w.kind != "collision"),
-                  default=0.0)  # fmt: skip
+        t, blend = obs.t, self.cfg.blend_s
+        a_c = max((w.alpha(t, blend) for w in self._windows if w.kind == "collision"), default=0.0)
+        a_i = max((w.alpha(t, blend) for w in self._windows if w.kind != "collision"), default=0.0)
         a_i = min(a_i, 1.0 - a_c)
         alpha = a_c + a_i
         self._stiffness = None
@@ -332,7 +290,7 @@ class AnticipatoryAVIC(ContactEvents, Controller):
             k1 = base.signal("stiffness_Npm")
             force = (1.0 - alpha) * cmd.force
             ff = base.last_feedforward  # Eq. 8's u_ff, for the kinds configured to keep it
-            ff_c, ff_i = (ff if k in self.transition_ff else None for k in KINDS)
+            ff_c, ff_i = (ff if k in self.cfg.transition_feedforward else None for k in KINDS)
             hyb = base.loop
             d, u_fc = target.force_dir, hyb.last_force_loop
             m, m_ff = hyb.mass_kg, hyb.inertia_feedforward
@@ -371,8 +329,8 @@ class AnticipatoryAVIC(ContactEvents, Controller):
         pose is exact, so without this draw the beliefs would converge to the sub-millimetre
         errors of exact kinematics (issue #17 item 4)."""
         z = np.array(position, dtype=float)
-        if self.detection_noise_std > 0.0 and self._meas_rng is not None:
-            z = z + self._meas_rng.normal(0.0, self.detection_noise_std, size=z.shape)
+        if self.cfg.detection_noise_std > 0.0 and self._meas_rng is not None:
+            z = z + self._meas_rng.normal(0.0, self.cfg.detection_noise_std, size=z.shape)
         return z
 
     def _release(self, contact: int, t: float) -> None:
@@ -406,9 +364,9 @@ class AnticipatoryAVIC(ContactEvents, Controller):
                 "mean": c.belief.mean.tolist(),
                 "std": float(np.sqrt(np.max(np.diag(c.belief.cov)))),
                 "region_m": max(
-                    self.sigma_scale
+                    self.cfg.sigma_scale
                     * float(np.sqrt(np.max(np.linalg.eigvalsh(c.belief.cov + c.belief.R)))),
-                    self.min_region_m,
+                    self.cfg.min_region_radius_m,
                 ),
                 "prior_mean": prior[0], "prior_std": prior[1],
                 "approach_velocity": c.approach.velocities[-1] if made else None,
@@ -444,7 +402,7 @@ class AnticipatoryAVIC(ContactEvents, Controller):
         if data is not None:
             try:
                 key = f"{self.ant_key}.map"
-                ours = ContactMap(data["settings"]["dim"], **self._map_args, key=key)
+                ours = ContactMap(data["settings"]["dim"], **self.cfg.map, key=key)
                 approach = ours.approach_params
                 contacts = [
                     {**c, "approach": c["approach"] and {**c["approach"], "params": approach}}

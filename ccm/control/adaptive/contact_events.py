@@ -54,9 +54,7 @@ class ContactEvents:
     _force_hist: deque[tuple[float, np.ndarray]]
     _stall_since: float
     _stall_used: bool
-    stall_fraction: float
-    stall_lookback_s: float
-    stall_travel_m: float
+    cfg: Any  # AnticipationSettings
     k_collision: float
     control_dt: float
     _stall_u: np.ndarray
@@ -65,9 +63,6 @@ class ContactEvents:
     _resist_hist: deque[tuple[float, float]]
     _stall_speed: float
     _stall_peak: float
-    order_gate: float
-    approach_cos_min: float
-    blend_s: float
 
     def _pressed(self, obs: Observation, target: TargetSample) -> bool:
         """Whether a collision was made *quasi-statically* in an open window, past p_c.
@@ -118,7 +113,7 @@ class ContactEvents:
     def _stall_begins(self, obs: Observation, u: np.ndarray, speed: float) -> None:
         """Track the sliding resistance along u while the tool slides; start a stall when it
         stops sliding (not from rest: a tool that never slid along u has not stalled)."""
-        if float(obs.lin_vel @ u) > self.stall_fraction * speed:  # sliding along u
+        if float(obs.lin_vel @ u) > self.cfg.stall_fraction * speed:  # sliding along u
             self._track_resistance(obs.t, max(0.0, -float(obs.force @ u)))
         elif not math.isnan(self._slide_resist):
             self._stall_since, self._stall_u, self._stall_speed = obs.t, u, speed
@@ -128,13 +123,13 @@ class ContactEvents:
         """During a stall: the force rise and lag tests of :meth:`_pressed`."""
         u = self._stall_u
         floor = max(speed, self.detector.min_approach_speed)
-        if float(obs.lin_vel @ u) > self.stall_fraction * floor:  # the tool moves on
+        if float(obs.lin_vel @ u) > self.cfg.stall_fraction * floor:  # the tool moves on
             self._stall_since, self._stall_used = math.inf, False
             return False
         self._stall_peak = max(self._stall_peak, -float(obs.force @ u))
         if self._stall_used or obs.t - self._stall_since < 2.0 * self.detector.peak_window_s:
             return False
-        t_ref = self._stall_since - self.stall_lookback_s
+        t_ref = self._stall_since - self.cfg.stall_lookback_s
         before = self._history(self._force_hist, t_ref)
         rise = -float((obs.force - before) @ u)
         # the resistance while sliding, stall_lookback_s before the stall (the last samples
@@ -143,13 +138,13 @@ class ContactEvents:
         lag = float((target.position - obs.position) @ u)
         return (
             rise >= self.detector.jump_threshold_N
-            or lag >= resist / self.k_collision + self.stall_travel_m
+            or lag >= resist / self.k_collision + self.cfg.stall_travel_m
         )
 
     def _turned(self, u: np.ndarray) -> bool:
         """Whether the plan now moves in another direction than the one the sliding
         resistance was measured along (cos < ``approach_cos_min``)."""
-        return self._slide_u is None or float(u @ self._slide_u) < self.approach_cos_min
+        return self._slide_u is None or float(u @ self._slide_u) < self.cfg.approach_cos_min
 
     def _new_direction(self, u: np.ndarray | None) -> None:
         """The plan turned (or no collision window is open): the sliding resistance is
@@ -162,7 +157,7 @@ class ContactEvents:
     def _track_resistance(self, t: float, force: float) -> None:
         """Average the force against the motion while the tool slides along it over
         ~``stall_lookback_s`` (first-order; the F/T noise) and keep its history."""
-        r, tau = self._slide_resist, self.stall_lookback_s
+        r, tau = self._slide_resist, self.cfg.stall_lookback_s
         a = min(1.0, self.control_dt / tau) if tau > 0.0 else 1.0
         self._slide_resist = force if math.isnan(r) else r + a * (force - r)
         self._resist_hist.append((t, self._slide_resist))
@@ -193,7 +188,7 @@ class ContactEvents:
         v_cmd = self._commanded_velocity(event.onset_time)
         v_pre = np.asarray(event.approach_velocity, dtype=float)
         den = float(np.linalg.norm(v_cmd) * np.linalg.norm(v_pre))
-        return den > 0.0 and float(v_cmd @ v_pre) / den >= self.approach_cos_min
+        return den > 0.0 and float(v_cmd @ v_pre) / den >= self.cfg.approach_cos_min
 
     def _in_sequence(self, z: np.ndarray, gate: float | None = None) -> int | None:
         """The collision contact a collision at z belongs to, by the plan's order (§3.3):
@@ -215,7 +210,9 @@ class ContactEvents:
                 return i
         for i, c in enumerate(cm.contacts):
             if c.kind == "collision" and c.source == "config" and not c.updated_this_trial:
-                return i if dist(c) <= (self.order_gate if gate is None else gate) else None
+                return (
+                    i if dist(c) <= (self.cfg.association_gate if gate is None else gate) else None
+                )
         return None
 
     def _expected(self, t: float, kind: str) -> int | None:
@@ -226,6 +223,6 @@ class ContactEvents:
         beliefs 0.1 m off cannot tell two contacts 8 cm apart by distance."""
         open_ = [
             w.contact for w in self._windows
-            if w.kind == kind and not w.done and w.t0 <= t <= w.release + self.blend_s
+            if w.kind == kind and not w.done and w.t0 <= t <= w.release + self.cfg.blend_s
         ]  # fmt: skip
         return min(open_) if open_ else None

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ccm.core.errors import ConfigError, check_nonneg, check_positive
-from ccm.core.fields import checked, field_values, nested
+from ccm.core.fields import checked, field_values, nested, unchecked
 from ccm.sim.pymunk.parse import RegionSpec, Vec2, as_list, nonneg_vec2, vec2
 
 
@@ -46,11 +46,6 @@ def _goals(key: str, value: Any) -> tuple[Vec2, ...]:
     if not goals:
         raise ConfigError(key, "must hold at least one goal [x, y]")
     return goals
-
-
-def _any(key: str, value: Any) -> Any:
-    """No check of its own (the spec checks the value against its other fields)."""
-    return value
 
 
 @dataclass(frozen=True)
@@ -111,7 +106,7 @@ class HumanSpec:
     goals: tuple[Vec2, ...] = checked(_goals)
     stiffness: float = checked(check_positive)
     max_force: float = checked(check_positive)
-    goal_index: int = checked(_any, 0)  # checked against the goals in from_mapping
+    goal_index: int = checked(unchecked, 0)  # checked against the goals in from_mapping
     damping: float = checked(check_nonneg, 0.0)
     noise_std: float = checked(check_nonneg, 0.0)
     noise_cutoff_hz: float = checked(check_positive, 5.0)
