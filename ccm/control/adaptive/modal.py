@@ -29,7 +29,8 @@ the release to Eq. 4c alone.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -45,6 +46,7 @@ from ccm.core.errors import (
     check_nonneg,
     check_positive,
 )
+from ccm.core.fields import checked, field_values, one_of
 from ccm.core.filters import first_order_alpha
 from ccm.core.types import Observation, TargetSample
 from ccm.learn.contact.mode_features import FEATURE_KINDS, TransitionTrigger, feature_vector
@@ -55,15 +57,49 @@ TRIGGER_SIGNALS = ("tangential_force", "feature")
 FREE = -1  # mode id of "no contact mode" (free space, or not yet classified)
 
 
-def _sub(m: Mapping[str, Any], name: str, allowed: tuple[str, ...], key: str) -> dict[str, Any]:
-    """The ``modes.<name>`` mapping, with unknown keys rejected."""
-    sub = m.get(name)
-    if sub is None:
-        return {}
-    if not isinstance(sub, Mapping):
-        raise ConfigError(f"{key}.{name}", f"must be a mapping, got {type(sub).__name__}")
-    check_keys(f"{key}.{name}", sub, allowed)
-    return dict(sub)
+def _block(allowed: tuple[str, ...]) -> Callable[[str, Any], dict[str, Any]]:
+    """A check: a sub-block mapping (None: empty) with only ``allowed`` keys."""
+
+    def check(key: str, value: Any) -> dict[str, Any]:
+        if value is None:
+            return {}
+        if not isinstance(value, Mapping):
+            raise ConfigError(key, f"must be a mapping, got {type(value).__name__}")
+        check_keys(key, value, allowed)
+        return dict(value)
+
+    return check
+
+
+def _trigger(key: str, value: Any) -> dict[str, Any]:
+    """``trigger``: ``signal`` (tangential_force | feature), ``threshold`` > 0, and the
+    :class:`TransitionTrigger` arguments ``window`` and ``refractory_steps``."""
+    trig = _block(("signal", "threshold", "window", "refractory_steps"))(key, value)
+    signal = check_choice(f"{key}.signal", trig.pop("signal", "feature"), TRIGGER_SIGNALS)
+    thr = check_positive(f"{key}.threshold", trig.pop("threshold", 0.07))
+    return {"signal": signal, "args": {"threshold_N": thr, "window": 50, **trig}}
+
+
+@dataclass(frozen=True)
+class ModeSettings:
+    """The ``modes`` block of Algorithm 1 (meanings: :class:`ModalAVIC`), as typed fields."""
+
+    feature: str = checked(one_of(FEATURE_KINDS), "force_ratio")
+    trigger: dict[str, Any] = checked(_trigger, factory=lambda: _trigger("modes.trigger", None))
+    batch_size: int = checked(check_int_positive, 100)
+    classifier: dict[str, Any] = checked(
+        _block(("threshold", "confidence_threshold", "branching_factor")), factory=dict
+    )
+    min_normal_force: float = checked(check_nonneg, 1.0)  # N
+    sliding_speed: float = checked(check_nonneg, 0.01)  # m/s
+    min_mode_samples: int = checked(check_int_nonneg, 0)
+    contact_loss_steps: int = checked(check_int_nonneg, 20)
+    feature_lowpass_hz: float | None = checked(check_positive, None)  # Hz
+    settle_time_constants: float = checked(check_nonneg, 3.0)
+
+    @classmethod
+    def from_mapping(cls, cfg: Any, key: str) -> ModeSettings:
+        return cls(**field_values(cls, cfg, key)[0])
 
 
 class ModalAVIC(AVIC):
@@ -87,50 +123,14 @@ class ModalAVIC(AVIC):
     def __init__(self, modes: Mapping[str, Any] | None = None, **avic: Any) -> None:
         super().__init__(**avic)
         key = f"{avic.get('key', 'controller')}.modes"
-        m = dict(modes or {})
-        allowed = (
-            "feature", "trigger", "batch_size", "classifier", "min_normal_force",
-            "sliding_speed", "min_mode_samples", "contact_loss_steps", "feature_lowpass_hz",
-            "settle_time_constants",
-        )  # fmt: skip
-        check_keys(key, m, allowed)
         self.modes_key = key
-        self.feature = check_choice(
-            f"{key}.feature", m.get("feature", "force_ratio"), FEATURE_KINDS
-        )
-        trig = _sub(m, "trigger", ("signal", "threshold", "window", "refractory_steps"), key)
-        self.trigger_signal = check_choice(
-            f"{key}.trigger.signal", trig.pop("signal", "feature"), TRIGGER_SIGNALS
-        )
-        thr = check_positive(f"{key}.trigger.threshold", trig.pop("threshold", 0.07))
-        self._trigger_args = {"threshold_N": thr, "window": 50, **trig}
-        self.batch_size = check_int_positive(f"{key}.batch_size", m.get("batch_size", 100))
-        self._classifier_args = _sub(
-            m, "classifier", ("threshold", "confidence_threshold", "branching_factor"), key
-        )
-        self.min_normal_force = check_nonneg(
-            f"{key}.min_normal_force", m.get("min_normal_force", 1.0)
-        )
-        self.sliding_speed = check_nonneg(f"{key}.sliding_speed", m.get("sliding_speed", 0.01))
-        self.settle_time_constants = check_nonneg(
-            f"{key}.settle_time_constants", m.get("settle_time_constants", 3.0)
-        )
-        lp = m.get("feature_lowpass_hz")
-        self.feature_lowpass_hz = (
-            None if lp is None else check_positive(f"{key}.feature_lowpass_hz", lp)
-        )
-        self.contact_loss_steps = check_int_nonneg(
-            f"{key}.contact_loss_steps", m.get("contact_loss_steps", 20)
-        )
-        self.min_mode_samples = check_int_nonneg(
-            f"{key}.min_mode_samples", m.get("min_mode_samples", 0)
-        )
+        self.mcfg = mcfg = ModeSettings.from_mapping(modes, key)
         self._fm_cfg = dict(avic.get("forward_model") or {})
         self._fm_key = f"{avic.get('key', 'controller')}.forward_model"
         # learned state, kept across trials (reset() does not clear it)
         self.classifier = ModeClassifier(
-            **{"threshold": 0.05, "confidence_threshold": 0.6, **self._classifier_args},
-            min_batch=self.batch_size,
+            **{"threshold": 0.05, "confidence_threshold": 0.6, **mcfg.classifier},
+            min_batch=mcfg.batch_size,
             key=f"{key}.classifier",
         )
         self.make_trigger()  # validates the trigger settings now, not at the first step
@@ -141,8 +141,8 @@ class ModalAVIC(AVIC):
 
     def make_trigger(self) -> TransitionTrigger:
         """A fresh :class:`TransitionTrigger` from the configured settings."""
-        args = dict(self._trigger_args)
-        args.setdefault("refractory_steps", self.batch_size)
+        args = dict(self.mcfg.trigger["args"])
+        args.setdefault("refractory_steps", self.mcfg.batch_size)
         return TransitionTrigger(**args, key=f"{self.modes_key}.trigger")
 
     def reset(self, dim: int, control_dt: float) -> None:
@@ -155,20 +155,22 @@ class ModalAVIC(AVIC):
         self._batch: list[np.ndarray] = []
         self._replay: list[tuple[np.ndarray, np.ndarray]] = []
         self._conf = (math.nan, math.nan)
-        self._off = self.contact_loss_steps + 1  # steps since R last exceeded min_normal_force
+        self._off = self.mcfg.contact_loss_steps + 1  # steps since R last exceeded min_normal_force
         self._lp: tuple[float, ...] | None = None  # low-passed (‖F_t‖, ‖τ‖, R)
         self._alpha = (
             1.0
-            if self.feature_lowpass_hz is None
-            else first_order_alpha(control_dt, self.feature_lowpass_hz)
+            if self.mcfg.feature_lowpass_hz is None
+            else first_order_alpha(control_dt, self.mcfg.feature_lowpass_hz)
         )
         # a batch starts settle_time_constants filter time constants (3: 95 % of a step) after
         # its trigger, so it holds the new surface's ratio, not the filter's ramp from the old one
         self.settle_steps = (
             0
-            if self.feature_lowpass_hz is None
+            if self.mcfg.feature_lowpass_hz is None
             else math.ceil(
-                self.settle_time_constants / (2.0 * math.pi * self.feature_lowpass_hz) / control_dt
+                self.mcfg.settle_time_constants
+                / (2.0 * math.pi * self.mcfg.feature_lowpass_hz)
+                / control_dt
             )
         )
         self._settle = 0
@@ -199,7 +201,7 @@ class ModalAVIC(AVIC):
         f, v, nl = obs.force.tolist(), obs.lin_vel.tolist(), n.tolist()  # plain floats: 2-3 entries
         fn = _dot(f, nl)
         r = -fn  # the surface pushes back against the commanded force direction
-        if r < self.min_normal_force:
+        if r < self.mcfg.min_normal_force:
             self._lp = None
             return False, None, 0.0
         # Eq. 7 uses the friction force: the measured force in the plane normal to n
@@ -212,16 +214,16 @@ class ModalAVIC(AVIC):
             self._lp = tuple(y + a * (x - y) for x, y in zip(raw, self._lp, strict=True))
         f_t, tau, r = self._lp
         vn = _dot(v, nl)
-        if _dot(v, v) - vn * vn < self.sliding_speed**2:  # |v_t|² = |v|² − (v·n)²
+        if _dot(v, v) - vn * vn < self.mcfg.sliding_speed**2:  # |v_t|² = |v|² − (v·n)²
             return True, None, f_t
-        return True, feature_vector(f_t, tau, r, self.feature), f_t
+        return True, feature_vector(f_t, tau, r, self.mcfg.feature), f_t
 
     def before_step(self, obs: Observation, target: TargetSample, s: np.ndarray) -> None:
         """Algorithm 1, lines 2–7, on this step's measurements."""
         trig = event = 0.0
         contact, feat, f_t = self.contact_state(obs, target)
         self._off = 0 if contact else self._off + 1
-        if self._off > self.contact_loss_steps:  # out of contact for long enough
+        if self._off > self.mcfg.contact_loss_steps:  # out of contact for long enough
             if self.mode != FREE or self._pending or self._collecting:
                 self._switch(FREE)
                 self._pending = self._collecting = False
@@ -231,7 +233,7 @@ class ModalAVIC(AVIC):
         if feat is None and contact and self._batch:
             self._batch, self._replay = [], []  # a batch is one stretch of sliding: restart it
         if feat is not None:  # sliding in contact: Eq. 7 is a friction estimate
-            x = float(feat[-1]) if self.trigger_signal == "feature" else f_t
+            x = float(feat[-1]) if self.mcfg.trigger["signal"] == "feature" else f_t
             fired = self.trigger.update(x)
             if not self._collecting and (fired or self._pending):
                 self._collecting, self._pending = True, False
@@ -242,7 +244,7 @@ class ModalAVIC(AVIC):
                 self._settle -= 1  # the low-pass is still moving between the two surfaces
             elif self._collecting:
                 self._batch.append(feat)
-                if len(self._batch) >= self.batch_size:
+                if len(self._batch) >= self.mcfg.batch_size:
                     event = self._decide()
         self._signals.update(self._mode_signals(trig, event, float(self._collecting)))
 
@@ -283,7 +285,7 @@ class ModalAVIC(AVIC):
         unknown, and while the current mode's model lacks ``min_mode_samples`` samples."""
         if self._collecting or self._pending:
             return True
-        return self.mode != FREE and self.samples[self.mode] < self.min_mode_samples
+        return self.mode != FREE and self.samples[self.mode] < self.mcfg.min_mode_samples
 
     def end_trial(self) -> None:
         """Every mode's model gets the end-of-trial hook (modes persist across trials)."""
@@ -331,11 +333,11 @@ class ModalAVIC(AVIC):
                 fm.load_state_dict(rec["forward_model"])
                 models[mode] = fm
                 samples[mode] = check_int_nonneg(f"modes[{mode}].samples", rec["samples"])
-            n_features = len(feature_vector(1.0, 1.0, 1.0, self.feature))
+            n_features = len(feature_vector(1.0, 1.0, 1.0, self.mcfg.feature))
             if classifier.n_features_in_ not in (None, n_features):
                 raise ValueError(
                     f"the saved modes have {classifier.n_features_in_} features, "
-                    f"modes.feature={self.feature} has {n_features}"
+                    f"modes.feature={self.mcfg.feature} has {n_features}"
                 )
             expected = [FREE, *range(classifier.n_modes)]
             if sorted(models) != expected:
