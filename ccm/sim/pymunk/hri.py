@@ -105,6 +105,9 @@ class HumanSpec:
         noise_cutoff_hz: cut-off of the noise low-pass [Hz] > 0 (default 5.0).
         active_after_s: the hand force is zero before this time [s] >= 0 (default 0).
         ramp_s: rise time of the force after ``active_after_s`` [s] >= 0 (default 0: a step).
+        goal_times: optional times [s], one per goal, strictly increasing from 0: the hand
+            then pulls toward ``goals[i]`` from ``goal_times[i]`` on, a goal *sequence* (a
+            human guiding the tool along a path, ``ccm demo``); ``goal_index`` must be 0.
     """
 
     goals: tuple[Vec2, ...]
@@ -116,6 +119,7 @@ class HumanSpec:
     noise_cutoff_hz: float = 5.0
     active_after_s: float = 0.0
     ramp_s: float = 0.0
+    goal_times: tuple[float, ...] | None = None
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> HumanSpec:
@@ -123,7 +127,7 @@ class HumanSpec:
         d = to_plain(cfg, key)
         check_keys(key, d, (
             "goals", "goal_index", "stiffness", "damping", "max_force", "noise_std",
-            "noise_cutoff_hz", "active_after_s", "ramp_s",
+            "noise_cutoff_hz", "active_after_s", "ramp_s", "goal_times",
         ))  # fmt: skip
         _require(key, d, ("goals", "stiffness", "max_force"))
         goals = tuple(
@@ -149,7 +153,22 @@ class HumanSpec:
             ),
             active_after_s=check_nonneg(f"{key}.active_after_s", d.get("active_after_s", 0.0)),
             ramp_s=check_nonneg(f"{key}.ramp_s", d.get("ramp_s", 0.0)),
+            goal_times=_goal_times(f"{key}.goal_times", d.get("goal_times"), len(goals), idx),
         )
+
+
+def _goal_times(key: str, value: Any, n_goals: int, goal_index: int) -> tuple[float, ...] | None:
+    """``HumanSpec.goal_times``: one time per goal, from 0, strictly increasing."""
+    if value is None:
+        return None
+    times = tuple(float(check_nonneg(f"{key}[{i}]", v)) for i, v in enumerate(as_list(key, value)))
+    if len(times) != n_goals or times[0] != 0.0 or goal_index != 0:
+        raise ConfigError(
+            key, f"needs one time per goal ({n_goals}), the first 0, and goal_index 0"
+        )
+    if any(b <= a for a, b in zip(times[:-1], times[1:], strict=True)):
+        raise ConfigError(key, "must increase strictly")
+    return times
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,181 @@
+"""``ccm demo TASK --out FILE``: record one demonstration of a task in simulation.
+
+Seed A (§3) takes the target pattern P from one kinesthetic demonstration: a person guides
+the compliant robot through the task. Here seed B's simulated human
+(:class:`ccm.sim.pymunk.hri.HumanSpec`, a bounded, noisy PD pull of the hand toward a goal,
+seed B §3.1) does the guiding, and the robot runs in admittance mode:
+
+* **Human.** The hand's goal is the task's planned pattern P, sampled every
+  :data:`GOAL_DT_S` as a goal sequence (``HumanSpec.goal_times``), and held at P's end for
+  :data:`SETTLE_S`. It is part of the environment: the robot feels it only through the F/T
+  sensor and its own motion, like a real person's hand.
+* **Robot.** Zero-stiffness impedance, a pure damper: Eq. 1 of seed A with K_p acting on a
+  zero error (the reference is the robot's own measured position, every step), fixed damping
+  :data:`ROBOT_DAMPING_NSPM`, no inertial feed-forward. That is the admittance law f = D ẋ
+  of seed B Eq. 4 with f^r = 0, realised on a torque-controlled robot whose mass is its
+  own, so the tool yields to whatever pushes it: the hand, and the task's scene (springs,
+  surfaces) as they would in a real demonstration. The controller sees the Observation only.
+
+The file (CSV or Parquet, by suffix) has one row per control step: ``t`` [s], ``x, y`` [m]
+(the measured position), ``fx, fy`` [N] (the force the tool exerts on the environment: minus
+the simulator's contact force, what a wrist sensor below the hand would read) and, for
+inspection, ``human_fx, human_fy`` [N] (the hand's force). ``{type: recording, file: FILE}``
+reads it back (:mod:`ccm.tasks.recording`). 2D (pymunk) tasks only: a 3D task is refused in
+one line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from omegaconf import DictConfig
+
+from ccm.control.registry import make_controller
+from ccm.core.errors import ConfigError, SimulationDiverged, to_plain
+from ccm.core.types import TargetSample
+from ccm.sim import make_sim
+from ccm.sim.base import check_state_finite
+from ccm.tasks.task import load_task
+
+USAGE = "usage: ccm demo TASK --out FILE.csv|FILE.parquet [--seed N] [OVERRIDES…]"
+
+#: Goal-sequence spacing [s]: the hand's intent updated at 100 Hz, smooth to the 1 kg tool
+#: (chosen).
+GOAL_DT_S = 0.01
+#: Time recorded after P's end, the hand holding the last goal [s] (chosen: about 10 time
+#: constants of the hand-robot system below, so the demonstration ends at rest).
+SETTLE_S = 1.0
+#: The hand (chosen, within seed B's human-arm range): stiffness [N/m], damping [N s/m],
+#: force bound [N], noise std per axis [N] and its cut-off [Hz], force rise time [s].
+HUMAN: dict[str, float] = {
+    "stiffness": 1000.0,
+    "damping": 20.0,
+    "max_force": 40.0,
+    "noise_std": 0.3,
+    "noise_cutoff_hz": 2.0,
+    "ramp_s": 0.2,
+}
+#: The robot's admittance damping D [N s/m] (chosen: with the hand's 1000 N/m and 20 N s/m and
+#: the 1 kg tool, the hand-robot system is close to critically damped, ζ ≈ 0.95).
+ROBOT_DAMPING_NSPM = 40.0
+
+
+def demo_overrides(task: str, extra: Sequence[str]) -> list[str]:
+    """Hydra overrides of a demonstration: the task, the damper controller, then ``extra``."""
+    return [
+        f"task={task}",
+        "controller=fixed_impedance",
+        "controller.loop.damping_rule=fixed",
+        f"controller.loop.damping={ROBOT_DAMPING_NSPM}",
+        "controller.loop.inertia_feedforward=false",
+        *extra,
+    ]
+
+
+def compose_demo(task: str, extra: Sequence[str]) -> DictConfig:
+    """The composed config of a demonstration of ``task`` (ConfigError for a 3D task)."""
+    from hydra import compose, initialize_config_dir
+
+    from ccm.experiment.user_configs import config_dir
+
+    with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="ccm_demo"):
+        cfg = compose("config", overrides=demo_overrides(task, extra))
+    if cfg.task.get("dim") != 2 or cfg.sim.get("name") != "pymunk2d":
+        raise ConfigError(
+            "demo", f"task={task} is a 3-D task; ccm demo records 2-D (pymunk) tasks only"
+        )
+    return cfg
+
+
+def human_spec(pattern: Any, settle_s: float = SETTLE_S) -> dict[str, Any]:
+    """The scene's ``human`` entry: the hand pulling along P (a goal every GOAL_DT_S)."""
+    times = np.arange(0.0, pattern.duration + GOAL_DT_S / 2, GOAL_DT_S)
+    goals = pattern.sample_many(times)["position"]
+    return {
+        **HUMAN,
+        "goals": [[float(x), float(y)] for x, y in goals],
+        "goal_times": [float(t) for t in times],
+    }
+
+
+def record_demo(cfg: DictConfig, seed: int) -> dict[str, np.ndarray]:
+    """Run one demonstration; returns its columns (see the module docstring)."""
+    control_dt = float(cfg.sim.dt) * int(cfg.sim.control_decimation)
+    planned = load_task(cfg.task, control_dt)
+    scene = to_plain(cfg.task.scene, "task.scene")
+    if scene.get("human") is not None:
+        raise ConfigError("task.scene.human", "the task has a simulated human already")
+    scene["human"] = human_spec(planned.pattern)
+    sim = make_sim(to_plain(cfg.sim, "sim"), scene, list(planned.start))
+    ctrl = make_controller(to_plain(cfg.controller, "controller"))
+    ctrl.reset(planned.dim, sim.control_dt)
+    steps = int(math.floor((planned.duration + SETTLE_S) / sim.control_dt + 1e-9)) + 1
+    rows: dict[str, list[Any]] = {k: [] for k in ("t", "pos", "force", "hand")}
+    zero = np.zeros(planned.dim)
+    obs, info = sim.reset(seed=seed)
+    try:
+        for k in range(steps):
+            rows["t"].append(obs.t)
+            rows["pos"].append(obs.position.copy())
+            rows["force"].append(-np.asarray(info.contact_force, dtype=float))
+            rows["hand"].append([info.extra.get("human_fx_N", 0.0),
+                                 info.extra.get("human_fy_N", 0.0)])  # fmt: skip
+            if k == steps - 1:
+                break
+            here = TargetSample(obs.t, obs.position.copy(), zero, zero,
+                                planned.pattern.orientation)  # fmt: skip
+            obs, info = sim.step(ctrl.step(obs, here))
+            reason = check_state_finite(obs, float(cfg.sim.get("max_speed", math.inf)))
+            if reason is not None:
+                raise SimulationDiverged(reason)
+    finally:
+        sim.close()
+    pos, force, hand = (np.asarray(rows[k], dtype=float) for k in ("pos", "force", "hand"))
+    return {"t": np.asarray(rows["t"], dtype=float), "x": pos[:, 0], "y": pos[:, 1],
+            "fx": force[:, 0], "fy": force[:, 1], "human_fx": hand[:, 0],
+            "human_fy": hand[:, 1]}  # fmt: skip
+
+
+def write_demo(columns: dict[str, np.ndarray], out: Path) -> None:
+    """Write the columns as CSV (full float precision) or Parquet, by ``out``'s suffix."""
+    import pandas as pd
+
+    frame = pd.DataFrame(columns)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if out.suffix.lower() == ".csv":
+        frame.to_csv(out, index=False, float_format="%.17g")
+    else:
+        frame.to_parquet(out, index=False)
+
+
+def main(args: Sequence[str]) -> int:
+    """``ccm demo TASK --out FILE [--seed N] [OVERRIDES…]``: record, write, print a line."""
+    if args and args[0] in ("-h", "--help"):
+        print(USAGE)
+        return 0
+    parser = argparse.ArgumentParser(prog="ccm demo", exit_on_error=False, add_help=False)
+    parser.add_argument("task", nargs="?")
+    parser.add_argument("--out")
+    parser.add_argument("--seed", type=int, default=0)
+    try:
+        ns, rest = parser.parse_known_args(list(args))
+    except argparse.ArgumentError as exc:
+        raise ConfigError("demo", f"{exc}; {USAGE}") from None
+    bad = [a for a in rest if a.startswith("-") or "=" not in a]
+    if ns.task is None or ns.out is None or bad:
+        problem = f"unexpected {bad[0]!r}" if bad else "TASK and --out FILE are required"
+        raise ConfigError("demo", f"{problem}; {USAGE}")
+    out = Path(ns.out)
+    if out.suffix.lower() not in (".csv", ".parquet", ".pq"):
+        raise ConfigError("--out", f"{out}: must end in .csv or .parquet")
+    cfg = compose_demo(ns.task, rest)
+    columns = record_demo(cfg, ns.seed)
+    write_demo(columns, out)
+    t = columns["t"]
+    print(f"ccm: demonstration of {ns.task} ({len(t)} rows, {t[-1]:.3g} s) -> {out}")
+    return 0
