@@ -7,8 +7,10 @@ seed B §3.1) does the guiding, and the robot runs in admittance mode:
 
 * **Human.** The hand's goal is the task's planned pattern P, sampled every
   :data:`GOAL_DT_S` as a goal sequence (``HumanSpec.goal_times``), and held at P's end for
-  :data:`SETTLE_S`. It is part of the environment: the robot feels it only through the F/T
-  sensor and its own motion, like a real person's hand.
+  :data:`SETTLE_S`. Where P asks for a force F along d, the goal lies F / k past the planned
+  point along d (k the hand's stiffness), so that a hand stopped by the surface presses
+  with F, as a person pressing the tool down would. It is part of the environment: the
+  robot feels it only through the F/T sensor and its own motion, like a real person's hand.
 * **Robot.** Zero-stiffness impedance, a pure damper: Eq. 1 of seed A with K_p acting on a
   zero error (the reference is the robot's own measured position, every step), fixed damping
   :data:`ROBOT_DAMPING_NSPM`, no inertial feed-forward. That is the admittance law f = D ẋ
@@ -95,7 +97,9 @@ def compose_demo(task: str, extra: Sequence[str]) -> DictConfig:
 def human_spec(pattern: Any, settle_s: float = SETTLE_S) -> dict[str, Any]:
     """The scene's ``human`` entry: the hand pulling along P (a goal every GOAL_DT_S)."""
     times = np.arange(0.0, pattern.duration + GOAL_DT_S / 2, GOAL_DT_S)
-    goals = pattern.sample_many(times)["position"]
+    plan = pattern.sample_many(times)
+    # where P asks for a force, the hand aims F/k past the planned point: it presses with F
+    goals = plan["position"] + plan["force_dir"] * (plan["force_mag"] / HUMAN["stiffness"])[:, None]
     return {
         **HUMAN,
         "goals": [[float(x), float(y)] for x, y in goals],
