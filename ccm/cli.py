@@ -45,7 +45,7 @@ commands:
   animate RUN_DIR       a clip of one recorded trial (MP4 with ffmpeg, else GIF), replayed
                         from its time series: --condition C (default the first), --trial N
                         (default the last recorded), --out FILE, --fps F
-  demo TASK --out FILE  record one demonstration of a 2-D task in simulation (seed B's
+  demo TASK --out FILE  record one demonstration of a task in simulation (seed B's
                         simulated human guides the robot in admittance mode) as CSV or
                         Parquet, for a pattern {type: recording, file: FILE}; --seed N,
                         Hydra overrides

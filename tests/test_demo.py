@@ -3,6 +3,7 @@ robot in admittance mode), read back as P and replayed (issue #22's round trip).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from ccm.cli import config_dir, main
 from ccm.core.errors import ConfigError
 from ccm.experiment.components import build_components
 from ccm.experiment.trial import run_trial
+from ccm.sim.hand import Hand, HandSpec
 from ccm.sim.pymunk.hri import HumanSpec
 from ccm.sim.pymunk.hri_forces import HumanHand
 
@@ -35,15 +37,29 @@ def test_a_goal_sequence_switches_goals_at_their_times() -> None:
         HumanSpec.from_mapping({**two, "goal_times": [0.0, 0.0]}, "task.scene.human")
 
 
-def test_demo_refuses_3d_tasks_and_bad_arguments(tmp_path: Path, capsys: object) -> None:
-    out = str(tmp_path / "d.csv")
-    assert main(["demo", "h4_contact_learning", "--out", out]) == 2
-    err = capsys.readouterr().err  # type: ignore[attr-defined]
-    assert "3-D task; ccm demo records 2-D (pymunk) tasks only" in err
-    assert err.count("\n") == 1
+def test_the_nd_hand_follows_its_goal_sequence_and_saturates() -> None:
+    spec = HandSpec.from_mapping(
+        {"goals": [[0, 0, 0], [0, 0, 1]], "goal_times": [0, 1.0], "stiffness": 100.0,
+         "damping": 10.0, "max_force": 50.0}, "task.scene.human", 3,
+    )  # fmt: skip
+    hand = Hand(spec, 0.001)
+    hand.reset(np.random.default_rng(0))
+    p, v = np.array([0.1, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    np.testing.assert_allclose(hand.force(p, v, 0.5), [-10.0, 0.0, -10.0])
+    f = hand.force(p, np.zeros(3), 1.5)  # k (g - p) = (-10, 0, 100), scaled to 50 N
+    np.testing.assert_allclose(f, np.array([-10.0, 0.0, 100.0]) * 50.0 / np.hypot(10, 100))
+    with pytest.raises(ConfigError, match=r"human\.goal_times: needs one time per goal"):
+        bad = {"goals": [[0, 0, 0]], "goal_times": [0, 1], "stiffness": 1.0, "max_force": 1.0}
+        HandSpec.from_mapping(bad, "task.scene.human", 3)
+
+
+def test_demo_refuses_bad_arguments(tmp_path: Path, capsys: object) -> None:
     assert main(["demo", "smoke"]) == 2
     assert main(["demo", "smoke", "--out", str(tmp_path / "d.txt")]) == 2
-    assert not (tmp_path / "d.csv").exists()
+    assert main(["demo", "smoke", "--out", str(tmp_path / "d.csv"), "--bogus"]) == 2
+    err = capsys.readouterr().err  # type: ignore[attr-defined]
+    assert err.count("\n") == 3 and "d.txt: must end in .csv or .parquet" in err
+    assert not list(tmp_path.iterdir())
 
 
 def test_a_smoke_demonstration_is_deterministic_and_reads_back(tmp_path: Path) -> None:
@@ -57,13 +73,14 @@ def test_a_smoke_demonstration_is_deterministic_and_reads_back(tmp_path: Path) -
     assert a["human_fx"].abs().max() > 1.0  # the hand pushed
 
 
-def _replay(file: Path) -> dict[str, np.ndarray]:
-    """Replay ``file`` as multi_spring's P with fixed high stiffness, springs removed."""
+def _replay(file: Path, task: str, free_space: Sequence[str]) -> dict[str, np.ndarray]:
+    """Replay ``file`` as ``task``'s P with fixed high stiffness, ``free_space`` overrides
+    removing what the scene could push the tool with."""
+    pattern = f"task.pattern=[{{type: recording, file: '{file}', use_force: false}}]"
     with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="test"):
         cfg = compose("config", overrides=[
-        "experiment=single", "task=multi_spring", "controller=fixed_impedance_high",
-        f"task.pattern=[{{type: recording, file: '{file}'}}]",
-        "task.scene.springs=[]",  # free space: the replay has nothing pushing on it
+            "experiment=single", f"task={task}", "controller=fixed_impedance_high", pattern,
+            *free_space,
         ])  # fmt: skip
     comp = build_components(cfg)
     try:
@@ -71,6 +88,15 @@ def _replay(file: Path) -> dict[str, np.ndarray]:
     finally:
         comp.sim.close()
     return rec.arrays()
+
+
+def _rms_to_recording(log: dict[str, np.ndarray], demo: pd.DataFrame, axes: str) -> float:
+    """RMS distance of the replayed positions from the raw recorded ones [m]."""
+    t = log["t"]
+    ref = np.column_stack([np.interp(t, demo["t"], demo[a]) for a in axes])
+    err = np.linalg.norm(np.column_stack([log[f"pos_{a}"] for a in axes]) - ref, axis=1)
+    print(f"round trip: RMS {np.sqrt(np.mean(err**2)) * 1e3:.3f} mm, max {err.max() * 1e3:.3f} mm")
+    return float(np.sqrt(np.mean(err**2)))
 
 
 def test_round_trip_multi_spring_within_1_mm(tmp_path: Path) -> None:
@@ -82,10 +108,20 @@ def test_round_trip_multi_spring_within_1_mm(tmp_path: Path) -> None:
     # a real guided demonstration: it went round the circle, not exactly along the plan
     angle = np.unwrap(np.arctan2(demo["y"], demo["x"]))
     assert angle[-1] - angle[0] == pytest.approx(2 * np.pi, abs=0.2)
-    log = _replay(file)
-    t = log["t"]
-    ref = np.column_stack([np.interp(t, demo["t"], demo[c]) for c in ("x", "y")])
-    err = np.linalg.norm(np.column_stack([log["pos_x"], log["pos_y"]]) - ref, axis=1)
-    rms = float(np.sqrt(np.mean(err**2)))
-    print(f"round trip multi_spring: RMS {rms * 1e3:.3f} mm, max {err.max() * 1e3:.3f} mm")
-    assert 0.0 < rms <= 1e-3
+    log = _replay(file, "multi_spring", ["task.scene.springs=[]"])
+    assert 0.0 < _rms_to_recording(log, demo, "xy") <= 1e-3
+
+
+def test_round_trip_h4_contact_learning_3d_within_1_mm(tmp_path: Path) -> None:
+    """The same in 3D: the hand guides the Panda's tool down onto the table, into the wall and
+    the obstacle (the contact forces are recorded), and the replay without table and boxes
+    tracks the recording within 1 mm RMS."""
+    file = tmp_path / "h4.parquet"
+    assert main(["demo", "h4_contact_learning", "--out", str(file)]) == 0
+    demo = pd.read_parquet(file)
+    end = demo[["x", "y", "z"]].to_numpy()[-1]
+    np.testing.assert_allclose(end, [0.60, 0.10, 0.10], atol=2e-3)  # pressed into the corner
+    assert demo["fz"].min() < -5.0 and demo["fx"].max() > 5.0  # table and obstacle pushed on
+    free = ["sim=pybullet3d", "task.scene.boxes=[]", "task.scene.table=null", "task.contacts=[]"]
+    log = _replay(file, "h4_contact_learning", free)
+    assert 0.0 < _rms_to_recording(log, demo, "xyz") <= 1e-3

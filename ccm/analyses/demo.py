@@ -18,12 +18,14 @@ seed B §3.1) does the guiding, and the robot runs in admittance mode:
   own, so the tool yields to whatever pushes it: the hand, and the task's scene (springs,
   surfaces) as they would in a real demonstration. The controller sees the Observation only.
 
-The file (CSV or Parquet, by suffix) has one row per control step: ``t`` [s], ``x, y`` [m]
-(the measured position), ``fx, fy`` [N] (the force the tool exerts on the environment: minus
-the simulator's contact force, what a wrist sensor below the hand would read) and, for
-inspection, ``human_fx, human_fy`` [N] (the hand's force). ``{type: recording, file: FILE}``
-reads it back (:mod:`ccm.tasks.recording`). 2D (pymunk) tasks only: a 3D task is refused in
-one line.
+The file (CSV or Parquet, by suffix) has one row per control step: ``t`` [s], ``x, y(, z)``
+[m] (the measured position), ``fx, fy(, fz)`` [N] (the force the tool exerts on the
+environment: minus the simulator's contact force, friction included, what a wrist sensor
+below the hand would read) and, for inspection, ``human_fx, …`` [N] (the hand's force).
+``{type: recording, file: FILE}`` reads it back (:mod:`ccm.tasks.recording`). 2D tasks run
+on pymunk (``HumanSpec`` with ``goal_times``), 3D tasks on PyBullet: the hand
+(:class:`ccm.sim.hand.HandSpec`, the same law) is an external force at the tool point, on
+the tool link below the wrist F/T sensor, which therefore measures it.
 """
 
 from __future__ import annotations
@@ -40,9 +42,12 @@ from omegaconf import DictConfig
 from ccm.control.registry import make_controller
 from ccm.core.errors import ConfigError, SimulationDiverged, to_plain
 from ccm.core.types import TargetSample
-from ccm.sim import make_sim
+from ccm.experiment.components import check_dims
+from ccm.sim import backend, make_sim
 from ccm.sim.base import check_state_finite
 from ccm.tasks.task import load_task
+
+AXES = ("x", "y", "z")
 
 USAGE = "usage: ccm demo TASK --out FILE.csv|FILE.parquet [--seed N] [OVERRIDES…]"
 
@@ -80,55 +85,51 @@ def demo_overrides(task: str, extra: Sequence[str]) -> list[str]:
 
 
 def compose_demo(task: str, extra: Sequence[str]) -> DictConfig:
-    """The composed config of a demonstration of ``task`` (ConfigError for a 3D task)."""
+    """The composed config of a demonstration of ``task`` (a 3D task on ``sim=pybullet3d``)."""
     from hydra import compose, initialize_config_dir
 
     from ccm.experiment.user_configs import config_dir
 
     with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="ccm_demo"):
         cfg = compose("config", overrides=demo_overrides(task, extra))
-    if cfg.task.get("dim") != 2 or cfg.sim.get("name") != "pymunk2d":
-        raise ConfigError(
-            "demo", f"task={task} is a 3-D task; ccm demo records 2-D (pymunk) tasks only"
-        )
+        if cfg.task.get("dim") == 3 and not any(a.startswith("sim=") for a in extra):
+            cfg = compose("config", overrides=demo_overrides(task, ["sim=pybullet3d", *extra]))
     return cfg
 
 
-def human_spec(pattern: Any, settle_s: float = SETTLE_S) -> dict[str, Any]:
+def human_spec(pattern: Any) -> dict[str, Any]:
     """The scene's ``human`` entry: the hand pulling along P (a goal every GOAL_DT_S)."""
     times = np.arange(0.0, pattern.duration + GOAL_DT_S / 2, GOAL_DT_S)
     plan = pattern.sample_many(times)
     # where P asks for a force, the hand aims F/k past the planned point: it presses with F
     goals = plan["position"] + plan["force_dir"] * (plan["force_mag"] / HUMAN["stiffness"])[:, None]
-    return {
-        **HUMAN,
-        "goals": [[float(x), float(y)] for x, y in goals],
-        "goal_times": [float(t) for t in times],
-    }
+    return {**HUMAN, "goals": goals.tolist(), "goal_times": times.tolist()}
 
 
 def record_demo(cfg: DictConfig, seed: int) -> dict[str, np.ndarray]:
     """Run one demonstration; returns its columns (see the module docstring)."""
     control_dt = float(cfg.sim.dt) * int(cfg.sim.control_decimation)
     planned = load_task(cfg.task, control_dt)
+    check_dims(planned.dim, backend(cfg.sim.get("name")).dim, cfg)
     scene = to_plain(cfg.task.scene, "task.scene")
     if scene.get("human") is not None:
         raise ConfigError("task.scene.human", "the task has a simulated human already")
     scene["human"] = human_spec(planned.pattern)
-    sim = make_sim(to_plain(cfg.sim, "sim"), scene, list(planned.start))
+    start = list(planned.start) + (list(planned.pattern.orientation) if planned.dim == 3 else [])
+    sim = make_sim(to_plain(cfg.sim, "sim"), scene, start)
     ctrl = make_controller(to_plain(cfg.controller, "controller"))
     ctrl.reset(planned.dim, sim.control_dt)
     steps = int(math.floor((planned.duration + SETTLE_S) / sim.control_dt + 1e-9)) + 1
     rows: dict[str, list[Any]] = {k: [] for k in ("t", "pos", "force", "hand")}
     zero = np.zeros(planned.dim)
+    hand_keys = [f"human_f{a}_N" for a in AXES[: planned.dim]]
     obs, info = sim.reset(seed=seed)
     try:
         for k in range(steps):
             rows["t"].append(obs.t)
             rows["pos"].append(obs.position.copy())
             rows["force"].append(-np.asarray(info.contact_force, dtype=float))
-            rows["hand"].append([info.extra.get("human_fx_N", 0.0),
-                                 info.extra.get("human_fy_N", 0.0)])  # fmt: skip
+            rows["hand"].append([info.extra.get(key, 0.0) for key in hand_keys])
             if k == steps - 1:
                 break
             here = TargetSample(obs.t, obs.position.copy(), zero, zero,
@@ -139,10 +140,11 @@ def record_demo(cfg: DictConfig, seed: int) -> dict[str, np.ndarray]:
                 raise SimulationDiverged(reason)
     finally:
         sim.close()
-    pos, force, hand = (np.asarray(rows[k], dtype=float) for k in ("pos", "force", "hand"))
-    return {"t": np.asarray(rows["t"], dtype=float), "x": pos[:, 0], "y": pos[:, 1],
-            "fx": force[:, 0], "fy": force[:, 1], "human_fx": hand[:, 0],
-            "human_fy": hand[:, 1]}  # fmt: skip
+    out = {"t": np.asarray(rows["t"], dtype=float)}
+    for name, prefix in (("pos", ""), ("force", "f"), ("hand", "human_f")):
+        values = np.asarray(rows[name], dtype=float)
+        out.update({f"{prefix}{a}": values[:, i] for i, a in enumerate(AXES[: planned.dim])})
+    return out
 
 
 def write_demo(columns: dict[str, np.ndarray], out: Path) -> None:

@@ -10,6 +10,7 @@ them, and :func:`build_pattern` builds one from its YAML description.
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -18,6 +19,7 @@ import numpy as np
 
 from ccm.core.errors import (
     ConfigError,
+    check_bool,
     check_finite,
     check_int_positive,
     check_keys,
@@ -196,7 +198,7 @@ _TYPE_KEYS: dict[str, tuple[str, ...]] = {
 }
 #: Keys of a ``recording`` entry (its duration and force come from the file).
 _RECORDING_KEYS = ("type", "file", "name", "cutoff_hz", "force_threshold_N", "max_offset_m",
-                   "max_speed", "orientation_tol_rad")  # fmt: skip
+                   "max_speed", "orientation_tol_rad", "use_force")  # fmt: skip
 _FORCE_KEYS = ("direction", "magnitude")
 
 
@@ -244,7 +246,8 @@ def build_pattern(
         {type: line, to: [x, y(, z)], duration: 1.0}   # optional end_speed [m/s]
         {type: arc, center: [...], sweep_deg: 360, duration: 6.0}   # 3D: optional normal
         {type: hold, duration: 0.5}
-        {type: recording, file: demo.csv}   # a demonstration (ccm.tasks.recording)
+        {type: recording, file: demo.csv}   # a demonstration (ccm.tasks.recording);
+                                            # use_force: false drops its force target
 
     Any entry may give ``steps: N`` instead of ``duration`` (duration = N · control_dt),
     ``force: {direction: [...], magnitude: N}`` (hybrid force-motion target, seed A Eq. 1) and
@@ -333,6 +336,8 @@ def _recording(k: str, entry: Mapping[str, Any], start: np.ndarray) -> Segment:
     rec = read_recording(
         path, start.shape[0], f"{k}.file", max_speed=opt("max_speed", MAX_SPEED_MPS)
     )
+    if not check_bool(f"{k}.use_force", entry.get("use_force", True)):
+        rec = dataclasses.replace(rec, force=None)  # motion only (e.g. a replay in free space)
     return rs.RecordingSegment(
         start, rec, cutoff_hz=opt("cutoff_hz", rs.CUTOFF_HZ),
         force_threshold_N=opt("force_threshold_N", rs.FORCE_THRESHOLD_N),
