@@ -125,3 +125,26 @@ def test_round_trip_h4_contact_learning_3d_within_1_mm(tmp_path: Path) -> None:
     free = ["sim=pybullet3d", "task.scene.boxes=[]", "task.scene.table=null", "task.contacts=[]"]
     log = _replay(file, "h4_contact_learning", free)
     assert 0.0 < _rms_to_recording(log, demo, "xyz") <= 1e-3
+
+
+def test_the_h4_demonstration_task_loads_with_named_windows() -> None:
+    """task=h4_contact_learning_demo: P from the stored demonstration, cut into the plan's
+    segment names so the contacts' annotations resolve; the file is small and C² across the
+    window edges."""
+    from ccm.tasks.task import load_task
+
+    with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="test"):
+        cfg = compose("config", overrides=["sim=pybullet3d", "task=h4_contact_learning_demo"])
+    task = load_task(cfg.task, 0.001)
+    names = [s.name for s in task.pattern.segments]
+    assert names == ["approach", "press", "slide_to_wall", "settle_on_wall",
+                     "slide_along_wall", "settle_on_obstacle"]  # fmt: skip
+    assert [n["segment_index"] for n in task.contact_annotations] == [0, 2, 4]
+    assert task.pattern.duration == pytest.approx(8.7)
+    assert (config_dir() / "demos" / "h4_contact_learning.csv").stat().st_size < 120_000
+    edges = np.asarray(task.pattern.start_times[1:])
+    left, right = (task.pattern.sample_many(edges + d) for d in (-1e-9, 1e-9))
+    for name in ("position", "velocity", "acceleration"):
+        np.testing.assert_allclose(left[name], right[name], atol=1e-6, err_msg=name)
+    late = task.pattern.sample(8.0)  # pressing on table, wall and obstacle at the end
+    assert late.force_mag > 10.0 and late.force_dir is not None and late.force_dir[2] < -0.5

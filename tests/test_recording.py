@@ -187,3 +187,30 @@ def test_bad_paths_and_keys(tmp_path: Path) -> None:
         _pattern(_write(tmp_path, _frame()), cutoff_hz=300.0)
     with pytest.raises(ConfigError, match=r"row 9: position jumps at .* 0\.1 m/s"):
         _pattern(_write(tmp_path, _bad(_frame(), 9, "y", 0.001)), max_speed=0.1)
+
+
+def test_windows_of_one_file_join_as_the_whole_recording(tmp_path: Path) -> None:
+    """``from``/``to`` cut one smoothed spline into named segments: together they are the
+    whole recording (the same P to rounding), so the joins are C² too."""
+    file = _write(tmp_path, _frame(noise_m=2e-4))
+    whole = _pattern(file)
+    spec = [{"type": "recording", "file": file, "to": 1.5, "name": "a"},
+            {"type": "recording", "file": file, "from": 1.5, "name": "b"}]  # fmt: skip
+    split = build_pattern(spec, [0.1, 0.0], DT)
+    assert [s.name for s in split.segments] == ["a", "b"]
+    assert split.duration == pytest.approx(whole.duration)
+    ts = np.linspace(0.0, T - 1e-6, 3001)
+    for name in ("position", "velocity", "acceleration"):
+        np.testing.assert_allclose(
+            split.sample_many(ts)[name], whole.sample_many(ts)[name], atol=1e-12, err_msg=name
+        )
+    with pytest.raises(ConfigError, match=r"pattern\[0\]\.from: window \[3\.0, 9\.0\] s"):
+        _pattern(file, **{"from": 3.0, "to": 9.0})
+
+
+def test_a_ccm_path_is_inside_the_config_directory() -> None:
+    from ccm.experiment.user_configs import config_dir
+    from ccm.tasks.recording_file import resolve_path
+
+    assert resolve_path("ccm://demos/x.csv") == config_dir() / "demos" / "x.csv"
+    assert resolve_path("demos/x.csv") == Path("demos/x.csv")  # from the working directory

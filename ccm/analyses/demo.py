@@ -20,8 +20,9 @@ seed B §3.1) does the guiding, and the robot runs in admittance mode:
 
 The file (CSV or Parquet, by suffix) has one row per control step: ``t`` [s], ``x, y(, z)``
 [m] (the measured position), ``fx, fy(, fz)`` [N] (the force the tool exerts on the
-environment: minus the simulator's contact force, friction included, what a wrist sensor
-below the hand would read) and, for inspection, ``human_fx, …`` [N] (the hand's force).
+environment: minus the simulator's contact force; in 3D its normal part, friction left out,
+since friction follows from the motion and is no target; pymunk does not split it, so in 2D
+friction is included) and, for inspection, ``human_fx, …`` [N] (the hand's force).
 ``{type: recording, file: FILE}`` reads it back (:mod:`ccm.tasks.recording`). 2D tasks run
 on pymunk (``HumanSpec`` with ``goal_times``), 3D tasks on PyBullet: the hand
 (:class:`ccm.sim.hand.HandSpec`, the same law) is an external force at the tool point, on
@@ -49,7 +50,7 @@ from ccm.tasks.task import load_task
 
 AXES = ("x", "y", "z")
 
-USAGE = "usage: ccm demo TASK --out FILE.csv|FILE.parquet [--seed N] [OVERRIDES…]"
+USAGE = "usage: ccm demo TASK --out FILE.csv|FILE.parquet [--seed N] [--rate HZ] [OVERRIDES…]"
 
 #: Goal-sequence spacing [s]: the hand's intent updated at 100 Hz, smooth to the 1 kg tool
 #: (chosen).
@@ -85,16 +86,21 @@ def demo_overrides(task: str, extra: Sequence[str]) -> list[str]:
 
 
 def compose_demo(task: str, extra: Sequence[str]) -> DictConfig:
-    """The composed config of a demonstration of ``task`` (a 3D task on ``sim=pybullet3d``)."""
+    """The composed config of a demonstration of ``task`` (a 3D task on ``sim=pybullet3d``);
+    a Hydra error (an unknown task or key) is one ConfigError line."""
     from hydra import compose, initialize_config_dir
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
 
     from ccm.experiment.user_configs import config_dir
 
-    with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="ccm_demo"):
-        cfg = compose("config", overrides=demo_overrides(task, extra))
-        if cfg.task.get("dim") == 3 and not any(a.startswith("sim=") for a in extra):
-            cfg = compose("config", overrides=demo_overrides(task, ["sim=pybullet3d", *extra]))
-    return cfg
+    try:
+        with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="ccm_demo"):
+            dim = compose("config", overrides=[f"task={task}"]).task.get("dim")
+            sim = [] if dim != 3 or any(a.startswith("sim=") for a in extra) else ["sim=pybullet3d"]
+            return compose("config", overrides=demo_overrides(task, [*sim, *extra]))
+    except (HydraException, OmegaConfBaseException) as exc:
+        raise ConfigError("demo", " ".join(str(exc).split())[:300]) from None
 
 
 def human_spec(pattern: Any) -> dict[str, Any]:
@@ -128,7 +134,7 @@ def record_demo(cfg: DictConfig, seed: int) -> dict[str, np.ndarray]:
         for k in range(steps):
             rows["t"].append(obs.t)
             rows["pos"].append(obs.position.copy())
-            rows["force"].append(-np.asarray(info.contact_force, dtype=float))
+            rows["force"].append(-_normal_force(info, planned.dim))
             rows["hand"].append([info.extra.get(key, 0.0) for key in hand_keys])
             if k == steps - 1:
                 break
@@ -147,20 +153,30 @@ def record_demo(cfg: DictConfig, seed: int) -> dict[str, np.ndarray]:
     return out
 
 
+def _normal_force(info: Any, dim: int) -> np.ndarray:
+    """The contact force on the tool, its normal part where the simulator gives one (PyBullet:
+    ``normal_force_*``; friction is the demonstration's consequence, not a force target)."""
+    keys = [f"normal_force_{a}" for a in AXES[:dim]]
+    if all(k in info.extra for k in keys):
+        return np.array([info.extra[k] for k in keys], dtype=float)
+    return np.asarray(info.contact_force, dtype=float)
+
+
 def write_demo(columns: dict[str, np.ndarray], out: Path) -> None:
-    """Write the columns as CSV (full float precision) or Parquet, by ``out``'s suffix."""
+    """Write the columns as CSV (9 significant digits: 1 nm at 1 m) or Parquet, by suffix."""
     import pandas as pd
 
     frame = pd.DataFrame(columns)
     out.parent.mkdir(parents=True, exist_ok=True)
     if out.suffix.lower() == ".csv":
-        frame.to_csv(out, index=False, float_format="%.17g")
+        frame.to_csv(out, index=False, float_format="%.9g")
     else:
         frame.to_parquet(out, index=False)
 
 
 def main(args: Sequence[str]) -> int:
-    """``ccm demo TASK --out FILE [--seed N] [OVERRIDES…]``: record, write, print a line."""
+    """``ccm demo TASK --out FILE [--seed N] [--rate HZ] [OVERRIDES…]``: record one
+    demonstration (every control step, or every k-th for ``--rate``), write it, print a line."""
     if args and args[0] in ("-h", "--help"):
         print(USAGE)
         return 0
@@ -168,6 +184,7 @@ def main(args: Sequence[str]) -> int:
     parser.add_argument("task", nargs="?")
     parser.add_argument("--out")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--rate", type=float)
     try:
         ns, rest = parser.parse_known_args(list(args))
     except argparse.ArgumentError as exc:
@@ -181,6 +198,12 @@ def main(args: Sequence[str]) -> int:
         raise ConfigError("--out", f"{out}: must end in .csv or .parquet")
     cfg = compose_demo(ns.task, rest)
     columns = record_demo(cfg, ns.seed)
+    if ns.rate is not None:  # a smaller file: every k-th control step
+        control_dt = float(cfg.sim.dt) * int(cfg.sim.control_decimation)
+        if not 0.0 < ns.rate <= 1.0 / control_dt:
+            raise ConfigError("--rate", f"must lie in (0, {1.0 / control_dt:g}] Hz, got {ns.rate}")
+        every = max(1, round(1.0 / (ns.rate * control_dt)))
+        columns = {name: values[::every] for name, values in columns.items()}
     write_demo(columns, out)
     t = columns["t"]
     print(f"ccm: demonstration of {ns.task} ({len(t)} rows, {t[-1]:.3g} s) -> {out}")

@@ -42,12 +42,14 @@ from __future__ import annotations
 import bisect
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import PPoly, make_smoothing_spline
 
 from ccm.core.errors import ConfigError
-from ccm.tasks.recording_file import Recording
+from ccm.tasks.recording_file import MAX_SPEED_MPS, Recording, read_recording, resolve_path
 from ccm.tasks.segments import Segment, readonly
 
 #: Default cut-off of the smoothing spline [Hz] (see the module docstring).
@@ -111,13 +113,56 @@ class _Cubic:
         return np.stack([pos, vel, acc], axis=1)
 
 
+@dataclass(frozen=True)
+class Smoothed:
+    """A checked recording with its smoothed motion and (optional) force, as piecewise cubics."""
+
+    recording: Recording
+    motion: PPoly
+    force: PPoly | None
+
+
+#: Smoothed recordings by (file, its mtime and size, dim, max_speed, cutoff): the windows of
+#: one file (several pattern entries) and repeated task loads read and smooth it once.
+_CACHE: dict[tuple[Any, ...], Smoothed] = {}
+
+
+def load_smoothed(
+    path: str, dim: int, key: str, *, max_speed: float = MAX_SPEED_MPS, cutoff_hz: float = CUTOFF_HZ
+) -> Smoothed:
+    """Read, check and smooth a demonstration file (cached; errors name ``key``)."""
+    p = resolve_path(path)
+    stat = p.stat() if p.is_file() else None
+    ident = (str(p.resolve()), stat.st_mtime_ns, stat.st_size) if stat else None
+    cache_key = (ident, dim, max_speed, cutoff_hz)
+    if ident is not None and cache_key in _CACHE:
+        return _CACHE[cache_key]
+    rec = read_recording(path, dim, f"{key}.file", max_speed=max_speed)
+    nyquist = 0.5 / float(np.median(np.diff(rec.t)))
+    if not 0.0 < cutoff_hz < nyquist:
+        raise ConfigError(
+            f"{key}.cutoff_hz",
+            f"must lie in (0, {nyquist:.4g}) Hz (the Nyquist rate of {rec.path}), got {cutoff_hz}",
+        )
+    force = None if rec.force is None else smooth_columns(rec.t, rec.force, cutoff_hz)
+    out = Smoothed(rec, smooth_columns(rec.t, rec.position, cutoff_hz), force)
+    if len(_CACHE) >= 16:
+        _CACHE.clear()
+    _CACHE[cache_key] = out
+    return out
+
+
 class RecordingSegment(Segment):
     """A segment that follows a smoothed demonstration (see the module docstring).
 
     Args:
         start: where the previous segment ended (the pattern's start for the first) [m].
-        recording: the checked demonstration (:func:`ccm.tasks.recording_file.read_recording`).
-        cutoff_hz: f_c of the smoothing rule [Hz], > 0 and below the file's Nyquist rate.
+        smoothed: the smoothed demonstration (:func:`load_smoothed`).
+        window: ``(from, to)`` [s] of the recording this segment plays (default: all of it).
+            Consecutive windows of one file (``to`` of one = ``from`` of the next) join
+            exactly, C² included, as they cut one spline: a demonstration split into named
+            segments (e.g. for a task's ``contacts``).
+        use_force: whether the file's force columns are the force target.
         force_threshold_N: smallest force magnitude that is a force target [N].
         max_offset_m: largest start offset that is shifted away [m]; beyond it, an error.
         orientation_tol_rad: largest orientation change the recording may hold [rad].
@@ -130,9 +175,10 @@ class RecordingSegment(Segment):
     def __init__(
         self,
         start: Sequence[float] | np.ndarray,
-        recording: Recording,
+        smoothed: Smoothed,
         *,
-        cutoff_hz: float = CUTOFF_HZ,
+        window: tuple[float, float] | None = None,
+        use_force: bool = True,
         force_threshold_N: float = FORCE_THRESHOLD_N,
         max_offset_m: float = MAX_OFFSET_M,
         orientation_tol_rad: float = ORIENTATION_TOL_RAD,
@@ -140,36 +186,33 @@ class RecordingSegment(Segment):
         key: str = "segment",
     ) -> None:
         p0 = np.asarray(start, dtype=float)
-        rec = recording
-        super().__init__(float(rec.t[-1]), p0.shape[0], None, 0.0, name, key)
-        nyquist = 0.5 / float(np.median(np.diff(rec.t)))
-        if not 0.0 < cutoff_hz < nyquist:
+        rec = smoothed.recording
+        total = float(rec.t[-1])
+        t0, t1 = (0.0, total) if window is None else window
+        if not 0.0 <= t0 < t1 <= total + 1e-9:
             raise ConfigError(
-                f"{key}.cutoff_hz",
-                f"must lie in (0, {nyquist:.4g}) Hz (the Nyquist rate of {rec.path}), "
-                f"got {cutoff_hz}",
+                f"{key}.from", f"window [{t0}, {t1}] s must lie in [0, {total:.6g}] s of {rec.path}"
             )
+        super().__init__(t1 - t0, p0.shape[0], None, 0.0, name, key)
         _check_orientation(rec, key, orientation_tol_rad)
         self.path = rec.path
-        self.cutoff_hz = float(cutoff_hz)
+        self.t0 = t0
         self.force_threshold_N = float(force_threshold_N)
-        pp = smooth_columns(rec.t, rec.position, cutoff_hz)
-        offset = p0 - pp(0.0)
+        first = smoothed.motion(t0)
+        offset = p0 - first
         gap = float(np.linalg.norm(offset))
         if gap > max_offset_m:
             raise ConfigError(
                 f"{key}.file",
-                f"{rec.path}: starts at {np.round(pp(0.0), 4).tolist()}, {gap:.4g} m from the "
+                f"{rec.path}: starts at {np.round(first, 4).tolist()}, {gap:.4g} m from the "
                 f"previous end {p0.tolist()} (more than max_offset_m = {max_offset_m} m)",
             )
         #: the shift applied to the recording so that it starts at ``start`` [m]
         self.offset = readonly(offset)
-        self._motion = _Cubic(pp, offset)
-        self._force = (
-            None if rec.force is None else _Cubic(smooth_columns(rec.t, rec.force, cutoff_hz))
-        )
+        self._motion = _Cubic(smoothed.motion, offset)
+        self._force = _Cubic(smoothed.force) if use_force and smoothed.force else None
         self.start = readonly(p0.copy())
-        self.end = readonly(self._motion.eval(self.duration)[0].copy())
+        self.end = readonly(self._eval(self.duration)[0].copy())
 
     def _coeffs(self, t_local: float) -> list[list[float]]:  # pragma: no cover - unused
         raise NotImplementedError("RecordingSegment evaluates its spline directly (_eval)")
@@ -178,18 +221,18 @@ class RecordingSegment(Segment):
         raise NotImplementedError("RecordingSegment evaluates its spline directly (sample_many)")
 
     def _eval(self, t_local: float) -> np.ndarray:
-        return self._motion.eval(t_local)
+        return self._motion.eval(t_local + self.t0)
 
     def sample_many(self, t_local: np.ndarray) -> np.ndarray:
         """Vectorised :meth:`sample`; shape (N, 3, n)."""
         tl = np.clip(np.asarray(t_local, dtype=float), 0.0, self.duration)
-        return self._motion.eval_many(tl)
+        return self._motion.eval_many(tl + self.t0)
 
     def force_at(self, t_local: float) -> tuple[np.ndarray | None, float]:
         """The force target at ``t_local``: (unit direction, magnitude [N]) or (None, 0.0)."""
         if self._force is None:
             return None, 0.0
-        f = self._force.eval(min(max(t_local, 0.0), self.duration))[0]
+        f = self._force.eval(min(max(t_local, 0.0), self.duration) + self.t0)[0]
         mag = float(np.linalg.norm(f))
         if mag < self.force_threshold_N:
             return None, 0.0
@@ -200,7 +243,7 @@ class RecordingSegment(Segment):
         n = np.asarray(t_local).shape[0]
         if self._force is None:
             return np.zeros((n, self.dim)), np.zeros(n)
-        f = self._force.eval_many(np.clip(t_local, 0.0, self.duration))[:, 0, :]
+        f = self._force.eval_many(np.clip(t_local, 0.0, self.duration) + self.t0)[:, 0, :]
         mag = np.linalg.norm(f, axis=1)
         on = mag >= self.force_threshold_N
         direction = np.where(on[:, None], f / np.where(on, mag, 1.0)[:, None], 0.0)

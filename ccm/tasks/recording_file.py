@@ -149,14 +149,31 @@ def _check_speed(path: Path, key: str, t: np.ndarray, p: np.ndarray, max_speed: 
         )
 
 
+#: Prefix of a path inside ccm's config directory (``configs/``; ``ccm/_configs`` in a wheel).
+PACKAGE_PREFIX = "ccm://"
+
+
+def resolve_path(path: str | Path) -> Path:
+    """A recording's path: absolute as given; ``ccm://demos/x.csv`` inside ccm's config
+    directory (where the repository's demonstrations live, shipped with the package); any
+    other relative path from the current working directory (ccm never changes directory,
+    so it is where the command was started)."""
+    text = str(path)
+    if not text.startswith(PACKAGE_PREFIX):
+        return Path(text)
+    package = Path(__file__).resolve().parents[1]  # the ccm package
+    configs = package / "_configs"
+    root = configs if configs.is_dir() else package.parent / "configs"
+    return root / text[len(PACKAGE_PREFIX) :]
+
+
 def read_recording(
     path: str | Path, dim: int, key: str, *, max_speed: float = MAX_SPEED_MPS
 ) -> Recording:
     """Read and check a demonstration file (format: see the module docstring).
 
     Args:
-        path: the file; a relative path is taken from the current working directory (ccm
-            never changes directory, so it is where the command was started).
+        path: the file (:func:`resolve_path`).
         dim: the task's dimension, 2 or 3 (which position/force columns are required).
         key: configuration key for error messages (e.g. ``task.pattern[0].file``).
         max_speed: consecutive samples further apart than ``max_speed`` x their time step
@@ -167,7 +184,7 @@ def read_recording(
             too few rows, a value that is not a finite number, a time that does not
             increase, or a jump above ``max_speed``.
     """
-    p = Path(path)
+    p = resolve_path(path)
     if not p.is_file():
         raise ConfigError(key, f"{p}: no such file")
     cols = _columns(p, key)

@@ -10,7 +10,6 @@ them, and :func:`build_pattern` builds one from its YAML description.
 from __future__ import annotations
 
 import bisect
-import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -198,7 +197,7 @@ _TYPE_KEYS: dict[str, tuple[str, ...]] = {
 }
 #: Keys of a ``recording`` entry (its duration and force come from the file).
 _RECORDING_KEYS = ("type", "file", "name", "cutoff_hz", "force_threshold_N", "max_offset_m",
-                   "max_speed", "orientation_tol_rad", "use_force")  # fmt: skip
+                   "max_speed", "orientation_tol_rad", "use_force", "from", "to")  # fmt: skip
 _FORCE_KEYS = ("direction", "magnitude")
 
 
@@ -247,7 +246,8 @@ def build_pattern(
         {type: arc, center: [...], sweep_deg: 360, duration: 6.0}   # 3D: optional normal
         {type: hold, duration: 0.5}
         {type: recording, file: demo.csv}   # a demonstration (ccm.tasks.recording);
-                                            # use_force: false drops its force target
+                                            # use_force: false drops its force target;
+                                            # from/to [s]: a window of the file
 
     Any entry may give ``steps: N`` instead of ``duration`` (duration = N · control_dt),
     ``force: {direction: [...], magnitude: N}`` (hybrid force-motion target, seed A Eq. 1) and
@@ -322,7 +322,6 @@ def _segment(k: str, entry: Any, start: np.ndarray, control_dt: float) -> Segmen
 def _recording(k: str, entry: Mapping[str, Any], start: np.ndarray) -> Segment:
     """A ``{type: recording, file: PATH}`` entry (:mod:`ccm.tasks.recording`)."""
     from ccm.tasks import recording as rs
-    from ccm.tasks.recording_file import MAX_SPEED_MPS, read_recording
 
     check_keys(k, entry, _RECORDING_KEYS)
     path = _require(k, entry, "file")
@@ -333,13 +332,18 @@ def _recording(k: str, entry: Mapping[str, Any], start: np.ndarray) -> Segment:
         value = entry.get(name)
         return default if value is None else check_positive(f"{k}.{name}", value)
 
-    rec = read_recording(
-        path, start.shape[0], f"{k}.file", max_speed=opt("max_speed", MAX_SPEED_MPS)
-    )
-    if not check_bool(f"{k}.use_force", entry.get("use_force", True)):
-        rec = dataclasses.replace(rec, force=None)  # motion only (e.g. a replay in free space)
+    smoothed = rs.load_smoothed(
+        path, start.shape[0], k, max_speed=opt("max_speed", rs.MAX_SPEED_MPS),
+        cutoff_hz=opt("cutoff_hz", rs.CUTOFF_HZ),
+    )  # fmt: skip
+    window = None
+    if entry.get("from") is not None or entry.get("to") is not None:
+        t0 = check_nonneg(f"{k}.from", entry.get("from", 0.0))
+        t1 = float(smoothed.recording.t[-1]) if entry.get("to") is None else entry["to"]
+        window = (t0, check_positive(f"{k}.to", t1))
     return rs.RecordingSegment(
-        start, rec, cutoff_hz=opt("cutoff_hz", rs.CUTOFF_HZ),
+        start, smoothed, window=window,
+        use_force=check_bool(f"{k}.use_force", entry.get("use_force", True)),
         force_threshold_N=opt("force_threshold_N", rs.FORCE_THRESHOLD_N),
         max_offset_m=opt("max_offset_m", rs.MAX_OFFSET_M),
         orientation_tol_rad=opt("orientation_tol_rad", rs.ORIENTATION_TOL_RAD),
