@@ -214,3 +214,20 @@ def test_a_ccm_path_is_inside_the_config_directory() -> None:
 
     assert resolve_path("ccm://demos/x.csv") == config_dir() / "demos" / "x.csv"
     assert resolve_path("demos/x.csv") == Path("demos/x.csv")  # from the working directory
+
+
+def test_a_force_component_starts_where_the_recording_has_it(tmp_path: Path) -> None:
+    """The smoothing spreads a force step over about ±1/f_c; the per-axis gate keeps the
+    target's direction on the recorded components until the new one was recorded (a wall
+    met at 2 s while pressing on a table): no tilt toward the wall before it is reached."""
+    frame = _frame()
+    t = frame["t"] - 10.0
+    frame["fx"] = np.where(t >= 2.0, 10.0, 0.0)  # the wall, from 2 s on
+    frame["fy"] = -12.0  # the table, all along
+    P = _pattern(_write(tmp_path, frame))
+    before = P.sample_many(np.array([1.9, 1.99]))
+    np.testing.assert_allclose(before["force_dir"], [[0.0, -1.0], [0.0, -1.0]], atol=1e-12)
+    after = P.sample(2.5)
+    assert after.force_dir[0] == pytest.approx(10.0 / math.hypot(10.0, 12.0), abs=0.01)
+    raw_smooth = P.segments[0]._force.eval(1.9)[0]  # the spline itself leaks ahead of 2 s
+    assert abs(raw_smooth[0]) > 0.05  # (it rings: negative here)

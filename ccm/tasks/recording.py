@@ -27,8 +27,12 @@ target in three steps:
 
 Where the file has force columns (the force the tool exerted on the environment), they are
 smoothed by the same rule and become the hybrid force target (seed A Eq. 1, u_fc), per
-sample: direction f/|f| and magnitude |f| where |f| ≥ ``force_threshold_N``, pure motion
-below it (no force target).
+sample: direction f/|f| and magnitude |f| of the smoothed force f, each component kept
+only where the recorded one (linearly interpolated) reaches ``force_threshold_N``, and no
+force target (pure motion) where |f| stays below it. The gate keeps each component to where
+the demonstration pushed along it: the smoothing is not causal and spreads a contact's
+force step over about ±1/f_c, and a target that tilts toward a wall before the wall is
+reached pushes the tool into it by force (measured on h4_contact_learning_demo).
 
 The spline's start is shifted onto the previous segment's end (the pattern's ``start`` for
 the first segment) when it lies within ``max_offset_m`` of it, so that a recording made
@@ -211,6 +215,10 @@ class RecordingSegment(Segment):
         self.offset = readonly(offset)
         self._motion = _Cubic(smoothed.motion, offset)
         self._force = _Cubic(smoothed.force) if use_force and smoothed.force else None
+        if self._force is not None and rec.force is not None:
+            # the recording's own force, per axis: a component only where it was recorded
+            self._raw_t, self._raw_abs = rec.t, np.abs(rec.force)
+            self._raw_list = rec.t.tolist()
         self.start = readonly(p0.copy())
         self.end = readonly(self._eval(self.duration)[0].copy())
 
@@ -232,7 +240,11 @@ class RecordingSegment(Segment):
         """The force target at ``t_local``: (unit direction, magnitude [N]) or (None, 0.0)."""
         if self._force is None:
             return None, 0.0
-        f = self._force.eval(min(max(t_local, 0.0), self.duration) + self.t0)[0]
+        t = min(max(t_local, 0.0), self.duration) + self.t0
+        k = min(max(bisect.bisect_right(self._raw_list, t) - 1, 0), len(self._raw_list) - 2)
+        w = (t - self._raw_list[k]) / (self._raw_list[k + 1] - self._raw_list[k])
+        raw = (1.0 - w) * self._raw_abs[k] + w * self._raw_abs[k + 1]
+        f = np.where(raw >= self.force_threshold_N, self._force.eval(t)[0], 0.0)
         mag = float(np.linalg.norm(f))
         if mag < self.force_threshold_N:
             return None, 0.0
@@ -243,7 +255,9 @@ class RecordingSegment(Segment):
         n = np.asarray(t_local).shape[0]
         if self._force is None:
             return np.zeros((n, self.dim)), np.zeros(n)
-        f = self._force.eval_many(np.clip(t_local, 0.0, self.duration) + self.t0)[:, 0, :]
+        t = np.clip(t_local, 0.0, self.duration) + self.t0
+        raw = np.column_stack([np.interp(t, self._raw_t, col) for col in self._raw_abs.T])
+        f = np.where(raw >= self.force_threshold_N, self._force.eval_many(t)[:, 0, :], 0.0)
         mag = np.linalg.norm(f, axis=1)
         on = mag >= self.force_threshold_N
         direction = np.where(on[:, None], f / np.where(on, mag, 1.0)[:, None], 0.0)
