@@ -45,6 +45,10 @@ commands:
   animate RUN_DIR       a clip of one recorded trial (MP4 with ffmpeg, else GIF), replayed
                         from its time series: --condition C (default the first), --trial N
                         (default the last recorded), --out FILE, --fps F
+  demo TASK --out FILE  record one demonstration of a task in simulation (seed B's
+                        simulated human guides the robot in admittance mode) as CSV or
+                        Parquet, for a pattern {type: recording, file: FILE}; --seed N,
+                        Hydra overrides
   --help, -h            this message; `ccm run --help` shows Hydra's help and the config
   --version             print the version
 
@@ -469,18 +473,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         return cmd_list(argv[1:])
     if argv[0] == "run":
         return cmd_run(argv[1:])
-    if argv[0] in ("report", "paper", "animate"):
+    if argv[0] in ("report", "paper", "animate", "demo"):
+        from ccm.analyses.demo import main as demo
         from ccm.core.errors import ConfigError
         from ccm.plots.animate import main as animate
         from ccm.reporting.paper import main as paper
         from ccm.reporting.report import main as report
 
         try:
-            return {"report": report, "paper": paper, "animate": animate}[argv[0]](argv[1:])
+            commands = {"report": report, "paper": paper, "animate": animate, "demo": demo}
+            return commands[argv[0]](argv[1:])
         except ConfigError as exc:
             return _fail(str(exc), EXIT_CONFIG)
     return _fail(
-        f"unknown command {argv[0]!r}; allowed: run, list, report, paper, animate, --help",
+        f"unknown command {argv[0]!r}; allowed: run, list, report, paper, animate, demo, --help",
         EXIT_CONFIG,
     )
 

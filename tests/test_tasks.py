@@ -22,8 +22,17 @@ CONTROL_DT = 0.001
 
 
 def compose(path: Path) -> DictConfig:
-    """The task file placed under ``task`` (its Hydra package) so interpolations resolve."""
-    root = OmegaConf.create({"task": OmegaConf.load(path)})
+    """The task file placed under ``task`` (its Hydra package) so interpolations resolve; a
+    task that extends another (a ``defaults`` list, e.g. h4_contact_learning_demo) is
+    composed by Hydra."""
+    node = OmegaConf.load(path)
+    if "defaults" in node:
+        from hydra import compose as hydra_compose
+        from hydra import initialize_config_dir
+
+        with initialize_config_dir(str(TASK_DIR.parent), version_base="1.3", job_name="test"):
+            return hydra_compose("config", overrides=[f"task={path.stem}"]).task
+    root = OmegaConf.create({"task": node})
     assert isinstance(root, DictConfig)
     return root.task
 

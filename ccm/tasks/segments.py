@@ -96,6 +96,10 @@ class Segment(ABC):
         key: configuration key used in error messages.
     """
 
+    #: True when the force target changes within the segment: then :meth:`force_at` and
+    #: :meth:`force_many` give it, not ``force_dir``/``force_mag`` (a recording).
+    varying_force = False
+
     def __init__(
         self,
         duration: float,
@@ -150,6 +154,17 @@ class Segment(ABC):
         """Vectorised :meth:`sample`; returns shape (N, 3, n) (pos, vel, acc per time)."""
         tl = np.clip(np.asarray(t_local, dtype=float), 0.0, self.duration)
         return self._coeffs_many(tl) @ self._basis
+
+    def force_at(self, t_local: float) -> tuple[np.ndarray | None, float]:
+        """The force target (direction, magnitude [N]) at ``t_local``; constant here."""
+        return self.force_dir, self.force_mag
+
+    def force_many(self, t_local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Vectorised :meth:`force_at`: directions (N, n) (zeros: none), magnitudes (N,)."""
+        n = np.asarray(t_local).shape[0]
+        if self.force_dir is None:
+            return np.zeros((n, self.dim)), np.zeros(n)
+        return np.tile(self.force_dir, (n, 1)), np.full(n, self.force_mag)
 
     def __repr__(self) -> str:
         force = "" if self.force_dir is None else f", force={self.force_mag} N"

@@ -18,6 +18,7 @@ import numpy as np
 
 from ccm.core.errors import (
     ConfigError,
+    check_bool,
     check_finite,
     check_int_positive,
     check_keys,
@@ -93,7 +94,9 @@ class MotionPattern:
             readonly(zeros.copy()),
             readonly(zeros.copy()),
         )
-        self._final_force = (last.force_dir, last.force_mag)
+        self._final_force = (
+            last.force_at(last.duration) if last.varying_force else (last.force_dir, last.force_mag)
+        )
 
     def __len__(self) -> int:
         return len(self.segments)
@@ -126,6 +129,9 @@ class MotionPattern:
             raise ValueError(f"MotionPattern.sample: t must be a number, got {t!r}")
         seg = self.segments[i]
         out = seg._eval(t_eval - self._starts[i])
+        if seg.varying_force:  # a recording: the force target changes within the segment
+            fd, fm = seg.force_at(t_eval - self._starts[i])
+            return TargetSample(t, out[0], out[1], out[2], self.orientation, fd, fm, i, False)
         return TargetSample(
             t, out[0], out[1], out[2], self.orientation, seg.force_dir, seg.force_mag, i, False
         )
@@ -156,7 +162,10 @@ class MotionPattern:
             if not np.any(m):
                 continue
             pva[m] = seg.sample_many(tc[m] - self._starts[i])
-            if seg.force_dir is not None:
+            if seg.varying_force:
+                force_dir[m], force_mag[m] = seg.force_many(tc[m] - self._starts[i])
+                force_active[m] = force_mag[m] > 0.0
+            elif seg.force_dir is not None:
                 force_dir[m] = seg.force_dir
                 force_mag[m] = seg.force_mag
                 force_active[m] = True
@@ -179,13 +188,16 @@ class MotionPattern:
         return f"MotionPattern({len(self.segments)} segments, duration={self.duration} s)"
 
 
-_TYPES = ("line", "arc", "hold")
+_TYPES = ("line", "arc", "hold", "recording")
 _COMMON_KEYS = ("type", "duration", "steps", "force", "name")
 _TYPE_KEYS: dict[str, tuple[str, ...]] = {
     "line": ("to", "end_speed"),
     "arc": ("center", "sweep_deg", "normal"),
     "hold": (),
 }
+#: Keys of a ``recording`` entry (its duration and force come from the file).
+_RECORDING_KEYS = ("type", "file", "name", "cutoff_hz", "force_threshold_N", "max_offset_m",
+                   "max_speed", "orientation_tol_rad", "use_force", "from", "to")  # fmt: skip
 _FORCE_KEYS = ("direction", "magnitude")
 
 
@@ -233,6 +245,9 @@ def build_pattern(
         {type: line, to: [x, y(, z)], duration: 1.0}   # optional end_speed [m/s]
         {type: arc, center: [...], sweep_deg: 360, duration: 6.0}   # 3D: optional normal
         {type: hold, duration: 0.5}
+        {type: recording, file: demo.csv}   # a demonstration (ccm.tasks.recording);
+                                            # use_force: false drops its force target;
+                                            # from/to [s]: a window of the file
 
     Any entry may give ``steps: N`` instead of ``duration`` (duration = N · control_dt),
     ``force: {direction: [...], magnitude: N}`` (hybrid force-motion target, seed A Eq. 1) and
@@ -280,6 +295,8 @@ def _segment(k: str, entry: Any, start: np.ndarray, control_dt: float) -> Segmen
     if kind not in _TYPES:
         shown = "missing" if kind is None else f"unknown value {kind!r}"
         raise ConfigError(f"{k}.type", f"{shown}; allowed: {', '.join(_TYPES)}")
+    if kind == "recording":
+        return _recording(k, entry, start)
     check_keys(k, entry, _COMMON_KEYS + _TYPE_KEYS[kind])
     dim = start.shape[0]
     duration = _parse_duration(k, entry, control_dt)
@@ -300,3 +317,35 @@ def _segment(k: str, entry: Any, start: np.ndarray, control_dt: float) -> Segmen
             force_dir, force_mag, name, key=k, sweep_key="sweep_deg",
         )  # fmt: skip
     return HoldSegment(start, duration, force_dir, force_mag, name, key=k)
+
+
+def _recording(k: str, entry: Mapping[str, Any], start: np.ndarray) -> Segment:
+    """A ``{type: recording, file: PATH}`` entry (:mod:`ccm.tasks.recording`)."""
+    from ccm.tasks import recording as rs
+
+    check_keys(k, entry, _RECORDING_KEYS)
+    path = _require(k, entry, "file")
+    if not isinstance(path, str) or not path:
+        raise ConfigError(f"{k}.file", f"must be a file path, got {path!r}")
+
+    def opt(name: str, default: float) -> float:
+        value = entry.get(name)
+        return default if value is None else check_positive(f"{k}.{name}", value)
+
+    smoothed = rs.load_smoothed(
+        path, start.shape[0], k, max_speed=opt("max_speed", rs.MAX_SPEED_MPS),
+        cutoff_hz=opt("cutoff_hz", rs.CUTOFF_HZ),
+    )  # fmt: skip
+    window = None
+    if entry.get("from") is not None or entry.get("to") is not None:
+        t0 = check_nonneg(f"{k}.from", entry.get("from", 0.0))
+        t1 = float(smoothed.recording.t[-1]) if entry.get("to") is None else entry["to"]
+        window = (t0, check_positive(f"{k}.to", t1))
+    return rs.RecordingSegment(
+        start, smoothed, window=window,
+        use_force=check_bool(f"{k}.use_force", entry.get("use_force", True)),
+        force_threshold_N=opt("force_threshold_N", rs.FORCE_THRESHOLD_N),
+        max_offset_m=opt("max_offset_m", rs.MAX_OFFSET_M),
+        orientation_tol_rad=opt("orientation_tol_rad", rs.ORIENTATION_TOL_RAD),
+        name=None if entry.get("name") is None else str(entry["name"]), key=k,
+    )  # fmt: skip

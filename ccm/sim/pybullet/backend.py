@@ -59,6 +59,7 @@ import numpy as np
 from ccm.core.errors import ConfigError, SimulationDiverged, check_vector
 from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim.base import Simulator, all_finite
+from ccm.sim.hand import Hand
 from ccm.sim.pybullet._kernels import tool_sense, torque_law
 from ccm.sim.pybullet.dynamics import PandaDynamics, robot_dynamics
 from ccm.sim.pybullet.footprint import face_grid, table_friction
@@ -169,6 +170,9 @@ class PyBullet3D(Simulator):
         self._table_contacts: list[tuple[Any, float]] = []  # last step's (position, N)
         self._steps = 0
         self._rng: np.random.Generator | None = None
+        #: the simulated hand on the tool (scene.human), and its mean force over a period
+        self._hand = Hand(scene.human, self.dt) if scene.human is not None else None
+        self._hand_mean = np.zeros(3)
 
     @classmethod
     def from_config(
@@ -226,6 +230,9 @@ class PyBullet3D(Simulator):
         self._refresh_tip()
         self._rng = np.random.default_rng(seed)
         self.sensor.reset(self._rng)
+        self._hand_mean = np.zeros(3)
+        if self._hand is not None:  # its own stream: the sensor's draws stay as they were
+            self._hand.reset(np.random.default_rng(None if seed is None else [seed, 1]))
         # one uncounted settling step with a zero wrench, so the joint F/T sensor holds a
         # reading (PyBullet fills it during a step); gravity compensation keeps the arm put
         self._update_patch_friction()
@@ -262,12 +269,15 @@ class PyBullet3D(Simulator):
             )
         p, cid, hold = self._p, self._client, self.control_decimation
         total: list[np.ndarray] = []  # sums of f, m, kf, km, split over the period
+        hand_sum = np.zeros(3)
         for k in range(hold):
             self._update_patch_friction()
             tau = self._torques(wrench)
             p.setJointMotorControlArray(
                 self._robot, self._arm, p.TORQUE_CONTROL, forces=tau.tolist(), physicsClientId=cid
             )
+            if self._hand is not None:
+                hand_sum = hand_sum + self._push_hand()
             p.stepSimulation(physicsClientId=cid)
             self._refresh_tip()
             self._steps += 1
@@ -275,10 +285,23 @@ class PyBullet3D(Simulator):
             if hold > 1:
                 parts = [*self._ft, kf, km, split]
                 total = parts if k == 0 else [a + b for a, b in zip(total, parts, strict=True)]
+        if self._hand is not None:
+            self._hand_mean = hand_sum / hold
         if hold == 1:  # one physics step per control step (every shipped config): no means
             return self._output(*self._ft, kf, km, n, mu, split)
         f, m, kf, km, split = [a / hold for a in total]
         return self._output(f, m, kf, km, n, mu, split)
+
+    def _push_hand(self) -> np.ndarray:
+        """Apply the hand's force at the tool point for the next physics step; return it."""
+        pos, _, lin, _ = self._tip
+        assert self._hand is not None
+        f = self._hand.force(pos, lin, self._steps * self.dt)
+        self._p.applyExternalForce(
+            self._robot, self._tool_link, f.tolist(), pos.tolist(), self._p.WORLD_FRAME,
+            physicsClientId=self._client,
+        )  # fmt: skip
+        return f
 
     def close(self) -> None:
         """Disconnect this instance's physics client."""
@@ -495,8 +518,13 @@ class PyBullet3D(Simulator):
             force=f_meas,
             torque=t_meas,
         )
+        hand = {}
+        if self._hand is not None:  # the hand's force is external too, not a contact
+            hand = dict(zip(("human_fx_N", "human_fy_N", "human_fz_N"),
+                            self._hand_mean.tolist(), strict=True))  # fmt: skip
         info = StepInfo(
-            true_force=f_contact,  # contacts are the only external forces in this world
+            # contacts (and a scene's hand) are the only external forces in this world
+            true_force=f_contact if self._hand is None else f_contact + self._hand_mean,
             true_torque=t_contact,
             contact_force=f_contact,
             n_contacts=n,
@@ -513,6 +541,7 @@ class PyBullet3D(Simulator):
                 "normal_force_z": nz,
                 # the arm's joint angles [rad] (q1_rad ... q7_rad): what `ccm animate` replays
                 **dict(zip(_JOINT_KEYS, self._recorded_joints().tolist(), strict=True)),
+                **hand,
             },
         )
         return obs, info

@@ -27,6 +27,7 @@ from ccm.core.errors import (
     to_plain,
 )
 from ccm.core.fields import checked, field_values, nested, one_of, vector
+from ccm.sim.hand import HandSpec
 from ccm.sim.sensor import SensorConfig
 
 #: Franka's documented "ready" pose, used as IK seed and default rest posture [rad]
@@ -221,16 +222,18 @@ class Box3DSpec:
 
 @dataclass(frozen=True)
 class Scene3D:
-    """A 3D scene: an optional table (with friction patches) and static boxes."""
+    """A 3D scene: an optional table (with friction patches), static boxes and an optional
+    simulated human hand on the tool (:class:`ccm.sim.hand.HandSpec`, ``ccm demo``)."""
 
     table: TableSpec | None = None
     boxes: tuple[Box3DSpec, ...] = ()
+    human: HandSpec | None = None
 
     @classmethod
     def from_mapping(cls, cfg: Any, prefix: str = "task.scene") -> Scene3D:
         """Parse ``{table, boxes}``; keys in errors start with ``prefix``."""
         d = to_plain(cfg, prefix)
-        check_keys(prefix, d, ("table", "boxes"))
+        check_keys(prefix, d, ("table", "boxes", "human"))
         table = None
         if d.get("table") is not None:
             table = TableSpec.from_mapping(d["table"], f"{prefix}.table")
@@ -240,7 +243,10 @@ class Scene3D:
         if isinstance(raw, Mapping | str) or not isinstance(raw, Sequence):
             raise ConfigError(f"{prefix}.boxes", f"must be a list, got {type(raw).__name__}")
         boxes = tuple(Box3DSpec.from_mapping(b, f"{prefix}.boxes[{i}]") for i, b in enumerate(raw))
-        return cls(table=table, boxes=boxes)
+        human = d.get("human")
+        if human is not None:
+            human = HandSpec.from_mapping(human, f"{prefix}.human", 3)
+        return cls(table=table, boxes=boxes, human=human)
 
 
 # --------------------------------------------------------------------------- geometry

@@ -22,6 +22,7 @@ The parsing helpers and the region shape come from :mod:`ccm.sim.pymunk.parse`, 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -101,6 +102,9 @@ class HumanSpec:
         noise_cutoff_hz: cut-off of the noise low-pass [Hz] > 0 (default 5.0).
         active_after_s: the hand force is zero before this time [s] >= 0 (default 0).
         ramp_s: rise time of the force after ``active_after_s`` [s] >= 0 (default 0: a step).
+        goal_times: optional times [s], one per goal, strictly increasing from 0: the hand
+            then pulls toward ``goals[i]`` from ``goal_times[i]`` on, a goal *sequence* (a
+            human guiding the tool along a path, ``ccm demo``); ``goal_index`` must be 0.
     """
 
     goals: tuple[Vec2, ...] = checked(_goals)
@@ -112,6 +116,7 @@ class HumanSpec:
     noise_cutoff_hz: float = checked(check_positive, 5.0)
     active_after_s: float = checked(check_nonneg, 0.0)
     ramp_s: float = checked(check_nonneg, 0.0)
+    goal_times: tuple[float, ...] | None = checked(unchecked, None)  # checked in from_mapping
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> HumanSpec:
@@ -122,7 +127,22 @@ class HumanSpec:
                 f"{key}.goal_index",
                 f"must be an integer in [0, {n - 1}] or -1 (random), got {idx!r}",
             )
-        return spec
+        times = _goal_times(f"{key}.goal_times", spec.goal_times, n, idx)
+        return dataclasses.replace(spec, goal_times=times)
+
+
+def _goal_times(key: str, value: Any, n_goals: int, goal_index: int) -> tuple[float, ...] | None:
+    """``HumanSpec.goal_times``: one time per goal, from 0, strictly increasing."""
+    if value is None:
+        return None
+    times = tuple(float(check_nonneg(f"{key}[{i}]", v)) for i, v in enumerate(as_list(key, value)))
+    if len(times) != n_goals or times[0] != 0.0 or goal_index != 0:
+        raise ConfigError(
+            key, f"needs one time per goal ({n_goals}), the first 0, and goal_index 0"
+        )
+    if any(b <= a for a, b in zip(times[:-1], times[1:], strict=True)):
+        raise ConfigError(key, "must increase strictly")
+    return times
 
 
 @dataclass(frozen=True)

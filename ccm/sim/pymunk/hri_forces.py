@@ -81,6 +81,7 @@ class HumanHand:
         self.goal_index = max(spec.goal_index, 0)
         self._gx, self._gy = spec.goals[self.goal_index]
         self._nx = self._ny = 0.0
+        self._next = 1
         self._rng: np.random.Generator | None = None
 
     @property
@@ -94,7 +95,10 @@ class HumanHand:
         spec = self.spec
         if spec.goal_index < 0:
             self.goal_index = int(rng.integers(len(spec.goals)))
+        else:  # a goal sequence ends each episode on its last goal
+            self.goal_index = spec.goal_index
         self._gx, self._gy = spec.goals[self.goal_index]
+        self._next = 1  # the next goal of a goal sequence (HumanSpec.goal_times)
         self._nx = self._ny = 0.0
         if spec.noise_std > 0.0:
             self._nx, self._ny = (float(v) for v in rng.normal(0.0, spec.noise_std, 2))
@@ -107,6 +111,12 @@ class HumanHand:
             wx, wy = self._rng.standard_normal(2)
             self._nx = self._a * self._nx + self._b * float(wx)
             self._ny = self._a * self._ny + self._b * float(wy)
+        if spec.goal_times is not None:
+            times = spec.goal_times
+            while self._next < len(times) and t >= times[self._next]:
+                self.goal_index = self._next
+                self._gx, self._gy = spec.goals[self._next]
+                self._next += 1
         if t < spec.active_after_s:
             return 0.0, 0.0
         fx = spec.stiffness * (self._gx - x) - spec.damping * vx + self._nx
