@@ -10,20 +10,24 @@ from __future__ import annotations
 import json
 import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import ccm
 from ccm.experiment import jobdir, user_configs
-from ccm.experiment.user_configs import config_dir, group_options  # noqa: F401 - also importable from here
+from ccm.experiment.precheck import compose_extra, precheck, yaml_line
+from ccm.experiment.user_configs import (  # noqa: F401 - also importable from here
+    GROUPS,
+    config_dir,
+    group_options,
+)
 
 jobdir.register()  # hydra.sweep.subdir names jobs through it, here and in launcher workers
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
 
-GROUPS = ("sim", "controller", "task", "experiment")
 EXIT_CONFIG = 2
 EXIT_FAILED = 1
 
@@ -100,7 +104,7 @@ def cmd_list(args: Sequence[str] = ()) -> int:
                 text = describe(group, opt, dirs)
             except (yaml.YAMLError, ConfigError) as exc:  # named, the rest still listed
                 broken += 1
-                line = str(exc) if isinstance(exc, ConfigError) else _yaml_line(exc)
+                line = str(exc) if isinstance(exc, ConfigError) else yaml_line(exc)
                 text = f"(unreadable: {line})"
             print(f"  {opt:<28} {text}")
     return EXIT_CONFIG if broken else 0
@@ -109,190 +113,6 @@ def cmd_list(args: Sequence[str] = ()) -> int:
 def _fail(message: str, code: int) -> int:
     print(f"ccm: error: {message}", file=sys.stderr)
     return code
-
-
-def _combos(overrides: Sequence[str], multirun: bool) -> list[list[str]]:
-    """Override lists to pre-check: the base combination, then each sweep value in turn."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-    from hydra.errors import HydraException
-
-    parser = OverridesParser.create()
-    parsed = []
-    for text in overrides:  # one at a time, so a syntax error names its override
-        try:
-            parsed += parser.parse_overrides([text])
-        except HydraException as exc:  # OverrideParseException: the grammar's message only
-            raise ValueError(f"{text}: {_one_line(exc)}") from None
-    base: list[str] = []
-    variants: list[tuple[int, list[str]]] = []
-    for i, ov in enumerate(parsed):
-        if ov.key_or_group.startswith("hydra"):
-            base.append("")
-            continue
-        if ov.is_sweep_override():
-            if not multirun:
-                raise ValueError(f"{ov.input_line}: sweeps need `ccm run -m`")
-            prefix = ov.input_line.split(ov.key_or_group, 1)[0]
-            values = [f"{prefix}{ov.get_key_element()}={v}" for v in ov.sweep_string_iterator()]
-            if not values:  # e.g. range(0,0): Hydra would launch no job
-                raise ValueError(f"{ov.input_line}: the sweep is empty; give at least one value")
-            base.append(values[0])
-            variants.append((i, values[1:]))
-        else:
-            base.append(ov.input_line)
-    combos = [[o for o in base if o]]
-    for i, values in variants:
-        for v in values:
-            c = list(base)
-            c[i] = v
-            combos.append([o for o in c if o])
-    return combos
-
-
-def _check_groups(overrides: Sequence[str], dirs: Sequence[Path] = ()) -> str | None:
-    for ov in overrides:
-        key, _, value = ov.lstrip("+~").partition("=")
-        if key in GROUPS and value not in user_configs.group_options(key, dirs):
-            allowed = ", ".join(user_configs.group_options(key, dirs))
-            return f"{key}={value}: unknown option; allowed: {allowed}"
-    return None
-
-
-def precheck(overrides: Sequence[str], multirun: bool, dirs: Sequence[Path] = ()) -> str | None:
-    """Compose each override combination and build its components, then check Hydra's own
-    settings (output directory, launcher); return an error line. ``dirs``: the user's config
-    directories (:mod:`ccm.experiment.user_configs`), searched before the package's."""
-    from hydra import initialize_config_dir
-    from hydra.errors import HydraException
-
-    try:
-        combos = _combos(overrides, multirun)
-    except (HydraException, ValueError) as exc:
-        return _one_line(exc)
-    planned: set[tuple[str, ...]] = set()
-    with initialize_config_dir(str(user_configs.config_dir()), version_base="1.3", job_name="ccm"):
-        for combo in combos:
-            bad = _check_groups(combo, dirs)
-            if bad:
-                return bad
-            err = _guarded(lambda c=combo: _check_combo(c, planned, dirs))
-            if err:
-                return err
-        return _guarded(lambda: _check_hydra(overrides, combos[0], multirun, dirs))
-
-
-def _check_combo(
-    combo: list[str], planned: set[tuple[str, ...]], dirs: Sequence[Path] = ()
-) -> None:
-    """Compose one override combination and build its plan (once per set of overrides
-    other than the seed, which changes no component); raise on bad input."""
-    from hydra import compose
-
-    from ccm.experiment.components import check_experiment, plan_experiment
-    from ccm.experiment.config_check import check_trial_steps
-    from ccm.metrics.trial import check_extra_metrics
-
-    cfg = compose("config", overrides=[*combo, *user_configs.searchpath_override(dirs)])
-    settings = check_experiment(cfg)
-    check_extra_metrics(cfg)
-    unseeded = tuple(o for o in combo if o.partition("=")[0].lstrip("+~") != "seed")
-    if unseeded in planned:
-        return
-    planned.add(unseeded)
-    plan = plan_experiment(cfg, lambda x: _compose_extra(combo, x, dirs), settings["trials"])
-    if cfg.experiment.get("kind", "trials") == "trials":
-        check_trial_steps(plan, settings)
-
-
-def _check_hydra(
-    overrides: Sequence[str], base: list[str], multirun: bool, dirs: Sequence[Path] = ()
-) -> None:
-    """Compose the base combination with its ``hydra`` overrides (sweeps left out) and check
-    the run or sweep directory, the job name and the launcher."""
-    from hydra import compose
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    from ccm.core.errors import ConfigError
-    from ccm.experiment import run_record
-    from ccm.experiment.config_check import check_hydra
-
-    parsed = OverridesParser.create().parse_overrides(list(overrides))
-    own = [
-        ov.input_line for ov in parsed
-        if ov.key_or_group.startswith("hydra") and not ov.is_sweep_override()
-        and ov.key_or_group != user_configs.SEARCHPATH  # dirs carries it
-    ]  # fmt: skip
-    search = user_configs.searchpath_override(dirs)
-    cfg = compose("config", overrides=[*base, *own, *search], return_hydra_config=True)
-    check_hydra(cfg.hydra, multirun)
-    if multirun:  # the sweep's config: the overrides but the sweeps (as Hydra's multirun.yaml)
-        unswept = [ov.input_line for ov in parsed if not ov.is_sweep_override()]
-        sweep = compose("config", overrides=[*unswept, *search])
-        try:
-            run_record.check_sweep_record(Path(cfg.hydra.sweep.dir), sweep, run_record.forced())
-        except run_record.RecordRefused as exc:
-            raise ConfigError("hydra.sweep.dir", str(exc)) from None
-
-
-def _guarded(check: Callable[[], None]) -> str | None:
-    """Run ``check``; a user error becomes its one line (a bug too, unless --verbose)."""
-    import yaml
-    from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
-
-    from ccm.core.errors import ConfigError
-
-    try:
-        check()
-    except ConfigError as exc:
-        return str(exc)
-    except (HydraException, OmegaConfBaseException, ValueError, TypeError) as exc:
-        return _one_line(exc)
-    except yaml.YAMLError as exc:
-        if os.environ.get("HYDRA_FULL_ERROR") == "1":
-            raise
-        return _yaml_line(exc)
-    except Exception as exc:  # a bug, not a user error: one line unless --verbose
-        if os.environ.get("HYDRA_FULL_ERROR") == "1":
-            raise
-        return f"{type(exc).__name__}: {_one_line(exc)}"
-    return None
-
-
-def _yaml_line(exc: BaseException) -> str:
-    """``<file>:<line>:<col>: <problem>`` for a YAML syntax error in a config file."""
-    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
-    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-    context = getattr(exc, "context", None)
-    where = f"{mark.name}:{mark.line + 1}:{mark.column + 1}" if mark else "config"
-    return f"{where}: YAML syntax error: {problem}" + (f" ({context})" if context else "")
-
-
-def _compose_extra(  # noqa: ANN202
-    base: Sequence[str], extra: Sequence[str], dirs: Sequence[Path] | None = None
-):
-    """Compose ``base`` plus a condition's ``extra`` overrides (``dirs``: the user's config
-    directories; None inside a Hydra job, where Hydra's own sources say)."""
-    from hydra import compose
-
-    if dirs is None:
-        dirs = user_configs.job_dirs(user_configs.config_dir())
-    bad = _check_groups(extra, dirs)
-    if bad:
-        from ccm.core.errors import ConfigError
-
-        key, _, _ = bad.partition(":")
-        raise ConfigError(f"experiment.conditions ({key})", bad.split(": ", 1)[1])
-    return compose("config", overrides=[*base, *extra, *user_configs.searchpath_override(dirs)])
-
-
-def _one_line(exc: BaseException) -> str:
-    """A single line from a Hydra/OmegaConf exception message."""
-    text = " ".join(str(exc).split())
-    if "is not in struct" in text or "Could not override" in text:
-        key = text.split("'")[1] if "'" in text else text
-        return f"{key}: unknown key (see `ccm run --cfg job` for the keys; `+{key}=…` adds one)"
-    return text.split(". ", 1)[0] if len(text) > 300 else text
 
 
 def _job(cfg) -> None:  # noqa: ANN001 - DictConfig, kept untyped for Hydra's signature check
@@ -364,7 +184,7 @@ def _run_locked(cfg: DictConfig, out_dir: Path, task_overrides: list[str], multi
 
         with threadpool_limits(limits=int(cfg.get("blas_threads") or 1)):
             summary = run(
-                cfg, lambda extra: _compose_extra(task_overrides, extra), out_dir,
+                cfg, lambda extra: compose_extra(task_overrides, extra), out_dir,
                 finished=finished,
             )  # fmt: skip
     except RunInterrupted as exc:

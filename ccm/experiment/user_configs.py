@@ -18,6 +18,9 @@ from ccm.core.errors import ConfigError
 DIR_FLAGS = ("--config-dir", "-cd")
 SEARCHPATH = "hydra.searchpath"
 
+#: the config groups a run composes (one option each)
+GROUPS = ("sim", "controller", "task", "experiment")
+
 
 def split_dir_flags(args: Sequence[str]) -> tuple[list[Path], list[str]]:
     """(the ``--config-dir`` / ``-cd`` directories, the other arguments) of a ``ccm run`` or
