@@ -84,7 +84,7 @@ def trial(composer, task: str) -> dict[str, Any]:
             if surface not in touched:
                 touched.add(surface)
                 events.append({"t": t, "pos": tip, "kind": "collision", "surface": surface})
-        mu = sim._table_mu  # noqa: SLF001 - the friction_map value under the tool point
+        mu = sim.table.mu  # the friction_map value under the tool point
         if state["mu"] is not None and mu != state["mu"] and on_table:
             events.append({"t": t, "pos": tip, "kind": "impactless", "surface": ("table", mu)})
         state["mu"] = mu

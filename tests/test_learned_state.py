@@ -100,24 +100,26 @@ def test_avic_modes_round_trip(composer: Composer) -> None:
     c = build(composer, "controller=avic_modes")
     feed(c, 0, [(0.3, 800), (0.6, 800)])
     c.end_trial()
-    assert c.classifier.n_modes == 2
+    assert c.modes.classifier.n_modes == 2
     fresh = build(composer, "controller=avic_modes")
     state = round_trip(c, fresh)
     assert [m["mode"] for m in state["modes"]] == [-1, 0, 1]
-    assert fresh.samples == c.samples and fresh.samples[0] > 0
-    assert fresh.classifier.mode_counts_ == c.classifier.mode_counts_
+    assert fresh.modes.samples == c.modes.samples and fresh.modes.samples[0] > 0
+    assert fresh.modes.classifier.mode_counts_ == c.modes.classifier.mode_counts_
     probe = np.linspace(0.0, 1.0, 101)[:, None]
-    np.testing.assert_array_equal(fresh.classifier.assign(probe), c.classifier.assign(probe))
+    np.testing.assert_array_equal(
+        fresh.modes.classifier.assign(probe), c.modes.classifier.assign(probe)
+    )
     s = np.array([0.1, 0.0, 10.5, 0.0])
-    for mode, model in c.models.items():
-        np.testing.assert_array_equal(fresh.models[mode].predict(s), model.predict(s))
+    for mode, model in c.modes.models.items():
+        np.testing.assert_array_equal(fresh.modes.models[mode].predict(s), model.predict(s))
     # the next trial makes the same decisions and commands (the BIRCH trees are rebuilt from
     # their centres, so later centre updates may differ slightly: ModeClassifier.from_state_dict)
     c.reset(2, 0.001)
     fresh.reset(2, 0.001)
     later = [(0.6, 500), (0.3, 500)]
     np.testing.assert_array_equal(feed(fresh, 1, later), feed(c, 1, later))
-    assert fresh.samples == c.samples and fresh.classifier.n_modes == 2
+    assert fresh.modes.samples == c.modes.samples and fresh.modes.classifier.n_modes == 2
     other = build(composer, "controller=avic_modes", "controller.modes.feature=torque_force_ratio")
     with pytest.raises(ConfigError, match="^init_from: .*1 features, .*torque_force_ratio has 2"):
         other.load_state_dict(state)
@@ -142,7 +144,7 @@ def test_anticipation_round_trip_keeps_the_contact_map(composer: Composer) -> No
     state = round_trip(c, fresh)
     assert (
         state["contact_map"]["trial"] == 1
-        and fresh.base.classifier.n_modes == c.base.classifier.n_modes
+        and fresh.base.modes.classifier.n_modes == c.base.modes.classifier.n_modes
     )
     (a, b) = (c.contact_map.contacts[0], fresh.contact_map.contacts[0])
     np.testing.assert_array_equal(b.belief.mean, a.belief.mean)

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.control.adaptive.modal import FREE, ModalAVIC
+from ccm.control.adaptive.avic import AVIC
+from ccm.control.adaptive.modal import FREE
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
 
@@ -19,8 +20,8 @@ SETTINGS = {
 }
 
 
-def make(**modes) -> ModalAVIC:
-    c = ModalAVIC(modes={**SETTINGS, **modes}, k_free=300.0, k_max=3000.0)
+def make(**modes) -> AVIC:
+    c = AVIC(modes={**SETTINGS, **modes}, k_free=300.0, k_max=3000.0)
     c.reset(2, 0.001)
     return c
 
@@ -41,7 +42,7 @@ def pressing_target() -> TargetSample:
 
 
 def run(
-    c: ModalAVIC,
+    c: AVIC,
     n: int,
     mu: float,
     normal: float = 10.0,
@@ -71,7 +72,7 @@ def test_free_space_has_no_mode_and_no_forced_stiffness() -> None:
         c.step(o, free_target)
     s = c.signals()
     assert s["mode"] == FREE and s["mode_collecting"] == 0.0
-    assert not c.hold_k_max()
+    assert not c.modes.hold_k_max()
 
 
 def test_first_surface_is_a_new_mode_learned_under_k_max() -> None:
@@ -85,7 +86,7 @@ def test_first_surface_is_a_new_mode_learned_under_k_max() -> None:
     # (the batch's own BATCH samples are replayed into it at the decision)
     assert all(s["stiffness_Npm"] == 3000.0 for s in sig[: decided + 100 - BATCH])
     assert sig[-1]["stiffness_Npm"] < 3000.0, "an accurate model then lowers the stiffness"
-    assert c.samples[0] >= 100
+    assert c.modes.samples[0] >= 100
 
 
 def test_revisits_in_a_new_direction_and_normal_force_are_known_modes() -> None:
@@ -97,8 +98,8 @@ def test_revisits_in_a_new_direction_and_normal_force_are_known_modes() -> None:
     assert events(sig) == [(0, 2.0), (1, 2.0), (0, 1.0), (1, 1.0)]
     known = [s for s in sig if s["mode_event"] == 1.0]
     assert all(s["mode_confidence"] >= 0.9 and s["mode_second_confidence"] <= 0.1 for s in known)
-    assert c.classifier.n_modes == 2 and set(c.models) == {FREE, 0, 1}
-    assert c.models[0] is not c.models[1]
+    assert c.modes.classifier.n_modes == 2 and set(c.modes.models) == {FREE, 0, 1}
+    assert c.modes.models[0] is not c.modes.models[1]
 
 
 def test_known_mode_releases_stiffness_sooner_than_a_new_one() -> None:
@@ -119,7 +120,7 @@ def test_a_pause_in_sliding_restarts_the_batch() -> None:
     c = make()
     sig = run(c, BATCH // 2, mu=0.3)
     sig += run(c, 10, mu=0.3, vx=0.0)  # pressing without sliding: Eq. 7 is no estimate
-    assert c.hold_k_max() and not any(s["mode_event"] for s in sig)
+    assert c.modes.hold_k_max() and not any(s["mode_event"] for s in sig)
     sig += run(c, BATCH, mu=0.3, seed=1)
     decided = [i for i, s in enumerate(sig) if s["mode_event"] > 0]
     assert decided == [BATCH // 2 + 10 + BATCH - 1], "a full batch after the pause"
@@ -137,13 +138,13 @@ def test_feature_lowpass_keeps_a_noisy_sensor_usable() -> None:
         sig += run(c, 600, mu=0.3, normal=5.0, noise=0.5, seed=2)
         decided = [m for m, _ in events(sig)]
         visits = [m for k, m in enumerate(decided) if k == 0 or m != decided[k - 1]]
-        results[name] = (sum(s["mode_trigger"] for s in sig), visits, c.classifier.n_modes)
+        results[name] = (sum(s["mode_trigger"] for s in sig), visits, c.modes.classifier.n_modes)
     triggers, visits, n_modes = results["filtered"]
     assert visits == [0, 1, 0] and n_modes == 2  # (a few extra triggers re-confirm the mode)
     raw_triggers, _, raw_modes = results["raw"]
     assert raw_triggers > 3 * triggers and raw_modes == 1, "raw: noise triggers, 0.5 missed"
     c = make(feature_lowpass_hz=20.0)
-    assert c.settle_steps == 24  # 3 / (2 pi 20 Hz) = 23.9 ms at 1 kHz
+    assert c.modes.settle_steps == 24  # 3 / (2 pi 20 Hz) = 23.9 ms at 1 kHz
 
 
 def test_a_normal_force_change_alone_does_not_trigger() -> None:
@@ -164,11 +165,11 @@ def test_tangential_force_trigger_fires_on_a_normal_force_change() -> None:
 def test_contact_loss_returns_to_free_after_the_debounce() -> None:
     c = make(contact_loss_steps=5)
     run(c, 200, mu=0.3)
-    assert c.mode == 0
+    assert c.modes.mode == 0
     run(c, 3, mu=0.3, normal=0.2)  # a short dip below min_normal_force keeps the mode
-    assert c.mode == 0
+    assert c.modes.mode == 0
     run(c, 10, mu=0.3, normal=0.2)
-    assert c.mode == FREE and c.model is c.models[FREE]
+    assert c.modes.mode == FREE and c.model is c.modes.models[FREE]
 
 
 def test_min_mode_samples_zero_leaves_release_to_eq_4c() -> None:
@@ -196,7 +197,7 @@ def test_min_mode_samples_zero_leaves_release_to_eq_4c() -> None:
 )
 def test_bad_settings_name_the_key(modes: dict, key: str) -> None:
     with pytest.raises(ConfigError) as e:
-        ModalAVIC(modes=modes)
+        AVIC(modes=modes)
     assert e.value.key.startswith(key)
 
 

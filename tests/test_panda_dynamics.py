@@ -178,7 +178,7 @@ def test_the_torque_bench_times_both_paths() -> None:
 def test_compiled_torque_law_matches_the_numpy_law(robot: Robot) -> None:
     """:func:`ccm.sim.pybullet._kernels.torque_law` on :meth:`PandaDynamics.torque_terms`
     against the torque law written in numpy on :meth:`PandaDynamics.compute`'s terms (the
-    form ``PyBullet3D._torques_pybullet`` uses): ``τ = Jᵀ [f; m + m_hold] + h − Jᵀ Λ J̇ q̇ +
+    form ``TorqueLoop._torques_pybullet`` uses): ``τ = Jᵀ [f; m + m_hold] + h − Jᵀ Λ J̇ q̇ +
     N τ₀``, with a random wrench, orientation hold and posture term at every sample.
 
     Tolerance: relative 1e-9 of max |τ|. The two compute Λ by different Cholesky codes (plain

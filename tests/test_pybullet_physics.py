@@ -270,7 +270,7 @@ def test_nullspace_posture_barely_moves_the_tool() -> None:
     try:
         obs, _ = sim.reset(0)
         p0, q0 = obs.position.copy(), sim.joint_positions
-        sim._q_rest[2] += 0.4  # noqa: SLF001 - test hook: displace the posture target
+        sim.torque_loop.q_rest[2] += 0.4  # test hook: displace the posture target
         for _ in range(2000):
             obs, _ = sim.step(Command(ZERO3, ZERO3))
         moved = float(np.linalg.norm(obs.position - p0))
@@ -292,7 +292,7 @@ def test_jacobian_is_the_tool_points() -> None:
         sim.reset(0)
         p, cid, robot, link = sim._p, sim._client, sim._robot, sim._tool_link  # noqa: SLF001
         q = np.array([0.3, -0.5, 0.4, -2.1, 0.5, 1.4, 0.2])
-        jac = sim._jacobian(q, np.zeros(7))  # noqa: SLF001
+        jac = sim.torque_loop.model_terms(q, np.zeros(7), False)[0]
         eps = 1e-6
         fd = np.zeros((6, 7))
         for j in range(7):

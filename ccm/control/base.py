@@ -29,6 +29,12 @@ class Controller(ABC):
         argument (``type``/``description`` are bookkeeping and ignored)."""
         return cls(**constructor_kwargs(cls, cfg, key), key=key)  # type: ignore[call-arg]
 
+    @property
+    def type_name(self) -> str | None:
+        """The registry name (``controller.type``) where one class serves several; None: the
+        class's own registry entry."""
+        return None
+
     def reset(self, dim: int, control_dt: float) -> None:
         """Prepare for a new trial in a ``dim``-dimensional task space at period ``control_dt``."""
         self.dim = dim

@@ -7,7 +7,6 @@ from typing import Any
 
 from ccm.control.adaptive.anticipation import AnticipatoryAVIC
 from ccm.control.adaptive.avic import AVIC
-from ccm.control.adaptive.modal import ModalAVIC
 from ccm.control.base import Controller
 from ccm.control.baselines.aic import AIC
 from ccm.control.baselines.bac import BAC
@@ -22,7 +21,7 @@ CONTROLLERS: dict[str, type[Controller]] = {
     "aic": AIC,
     "bac": BAC,
     "avic": AVIC,
-    "avic_modes": ModalAVIC,
+    "avic_modes": AVIC,  # with Algorithm 1 (its modes block): AVIC.from_config
     "avic_anticipation": AnticipatoryAVIC,
     "gp_mpc": GPMPC,
 }

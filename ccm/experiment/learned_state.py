@@ -26,7 +26,9 @@ STATE_VERSION = 1
 
 
 def controller_type(controller: Controller) -> str:
-    """The registry name (``controller.type``) of a controller's class."""
+    """The registry name (``controller.type``) of a controller."""
+    if controller.type_name is not None:
+        return controller.type_name
     for name, cls in CONTROLLERS.items():
         if type(controller) is cls:
             return name

@@ -1,6 +1,6 @@
 """Seed A's full framework: AVIC with mode detection plus contact change handling (§3.3–3.5).
 
-On top of :class:`ccm.control.adaptive.modal.ModalAVIC` (Eq. 4a–4c, Algorithm 1):
+On top of :class:`ccm.control.adaptive.avic.AVIC` holding Algorithm 1 (Eq. 4a–4c, §3.2):
 
 * **Contact anticipation** (§3.3): a :class:`ccm.learn.contact.contacts.ContactMap` holds one
 Gaussian
@@ -47,14 +47,12 @@ from typing import Any
 import numpy as np
 
 from ccm.control.adaptive.anticipation_settings import AnticipationSettings
+from ccm.control.adaptive.avic import AVIC, MODAL_TYPE
 from ccm.control.adaptive.contact_events import ContactEvents, TransitionWindow
-from ccm.control.adaptive.modal import ModalAVIC
 from ccm.control.adaptive.replan import plan_passes, rate_changes, windows_ahead
 from ccm.control.adaptive.transition import KINDS, transition_force
-from ccm.control.base import Controller
-from ccm.core.errors import (
-    ConfigError,
-)
+from ccm.control.base import STATE_ERRORS, Controller, check_state_keys, state_error
+from ccm.core.errors import ConfigError
 from ccm.core.types import Command, Observation, TargetSample
 from ccm.learn.contact.collisions import CollisionDetector
 from ccm.learn.contact.contacts import ContactMap
@@ -82,9 +80,10 @@ class AnticipatoryAVIC(ContactEvents, Controller):
             transition controller that keep Eq. 8's u_ff: :mod:`ccm.control.adaptive.transition`),
             ``map`` (:class:`ContactMap` arguments) and ``collisions``
             (:class:`CollisionDetector` arguments).
-        base: the base controller (Eq. 4a-4c with Algorithm 1), or None to build one from
-            ``modal``.
-        **modal: the :class:`ModalAVIC` arguments when ``base`` is None.
+        base: the base controller (:class:`AVIC`, Eq. 4a-4c, holding Algorithm 1's
+            :class:`ContactModes`), or None to build one from ``avic``.
+        **avic: the :class:`AVIC` arguments when ``base`` is None (``modes`` defaults to
+            ``{}``: Algorithm 1 with its default settings).
 
     The base controller is a member: its command is blended with the transition-phase
     controllers', its signals and learned state are extended with the anticipation's.
@@ -93,10 +92,12 @@ class AnticipatoryAVIC(ContactEvents, Controller):
     def __init__(
         self,
         anticipation: Mapping[str, Any] | None = None,
-        base: ModalAVIC | None = None,
-        **modal: Any,
+        base: AVIC | None = None,
+        **avic: Any,
     ) -> None:
-        self.base = base if base is not None else ModalAVIC(**modal)
+        self.base = base if base is not None else AVIC(**{"modes": {}, **avic})
+        if self.base.modes is None:
+            raise ConfigError(f"{self.base.key}.modes", "the base AVIC needs Algorithm 1's modes")
         key = f"{self.base.key}.anticipation"
         self.ant_key = key
         self.cfg = cfg = AnticipationSettings.from_mapping(anticipation, key)
@@ -107,8 +108,10 @@ class AnticipatoryAVIC(ContactEvents, Controller):
 
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> AnticipatoryAVIC:
-        """The ``anticipation`` block; everything else builds the base :class:`ModalAVIC`."""
-        base = ModalAVIC.from_config({k: v for k, v in cfg.items() if k != "anticipation"}, key)
+        """The ``anticipation`` block; everything else builds the base :class:`AVIC` with
+        Algorithm 1 (``type: avic_modes``)."""
+        rest = {k: v for k, v in cfg.items() if k != "anticipation"}
+        base = AVIC.from_config({**rest, "type": MODAL_TYPE}, key)
         return cls(anticipation=cfg.get("anticipation"), base=base)
 
     def reset(self, dim: int, control_dt: float) -> None:
@@ -375,14 +378,15 @@ class AnticipatoryAVIC(ContactEvents, Controller):
         return {**self.base.report(), "contacts": out}
 
     def end_trial(self) -> None:
-        """Kalman predict step for every belief (§3.3); models of every mode (ModalAVIC)."""
+        """Kalman predict step for every belief (§3.3); models of every mode (Algorithm 1)."""
         self.base.end_trial()
         if self.contact_map is not None:
             self.contact_map.end_trial()
 
     def state_dict(self) -> dict[str, Any]:
-        """:meth:`ModalAVIC.state_dict` plus ``contact_map``: the contact beliefs and their
-        approach-velocity models (:meth:`ContactMap.state_dict`; None before the first trial)."""
+        """:meth:`AVIC.state_dict` (with Algorithm 1's modes) plus ``contact_map``: the contact
+        beliefs and their approach-velocity models (:meth:`ContactMap.state_dict`; None before
+        the first trial)."""
         state = self.base.state_dict()
         state["contact_map"] = None if self.contact_map is None else self.contact_map.state_dict()
         return state
@@ -395,8 +399,6 @@ class AnticipatoryAVIC(ContactEvents, Controller):
         Raises:
             ConfigError: ``init_from``, on a malformed or mismatched state.
         """
-        from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
-
         check_state_keys(state, ("calibration", "classifier", "modes", "contact_map"))
         data, cmap = state["contact_map"], None
         if data is not None:

@@ -54,6 +54,7 @@ from typing import Any, Self
 
 import numpy as np
 
+from ccm.control.adaptive.modal import ContactModes
 from ccm.control.base import STATE_ERRORS, Controller, check_state_keys, state_error
 from ccm.control.loop import HybridLoop
 from ccm.core.errors import (
@@ -72,6 +73,7 @@ from ccm.learn.mixtures.forecast import ForecastBuffer, horizon_steps
 from ccm.learn.mixtures.forward_model import N_STATE, magnitudes, make_forward_model
 
 FF_DIRECTIONS = ("against_motion", "measured", "along_motion")
+MODAL_TYPE = "avic_modes"  # the registry name of AVIC with Algorithm 1
 _CALIBRATE_KEYS = ("trials", "quantile", "shape")
 
 
@@ -114,6 +116,9 @@ class AVIC(Controller):
         min_speed: measured speed below which ``against_motion`` and ``along_motion`` have no
             direction [m/s].
         forward_model: ``{kind: igmm | fixed_gmm, ...}`` (:mod:`ccm.learn.mixtures.forward_model`).
+        modes: Algorithm 1's ``modes`` block (:class:`ccm.control.adaptive.modal.ContactModes`,
+            ``{}`` = its defaults): one forward model per contact mode, held as the ``modes``
+            member; None = one forward model (plain AVIC).
         loop: the ``controller.loop`` block (:class:`ccm.control.loop.HybridLoop`: damping
             rule, force loop, inertial feed-forward, orientation hold).
     """
@@ -131,6 +136,7 @@ class AVIC(Controller):
         ff_direction: str = "measured",
         min_speed: float = 0.005,
         forward_model: Mapping[str, Any] | None = None,
+        modes: Mapping[str, Any] | None = None,
         loop: Mapping[str, Any] | None = None,
         key: str = "controller",
     ) -> None:
@@ -161,16 +167,25 @@ class AVIC(Controller):
         self.ff_direction = check_choice(f"{key}.ff_direction", ff_direction, FF_DIRECTIONS)
         self.min_speed = check_nonneg(f"{key}.min_speed", min_speed)
         self.model = make_forward_model(dict(forward_model or {}), f"{key}.forward_model")
-
-    #: config blocks a subclass adds to AVIC's arguments (``modes``, ``anticipation``)
-    BLOCKS: tuple[str, ...] = ()
+        self.modes = None if modes is None else ContactModes(modes, self.model, forward_model, key)
 
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> Self:
-        """AVIC's arguments (unknown keys rejected) plus the subclass's :attr:`BLOCKS`."""
-        own = {k: v for k, v in cfg.items() if k not in cls.BLOCKS}
-        blocks = {b: cfg.get(b) for b in cls.BLOCKS}
-        return cls(**blocks, **constructor_kwargs(AVIC, own, key), key=key)
+        """AVIC's arguments (unknown keys rejected). ``type: avic_modes`` holds Algorithm 1
+        (its ``modes`` block, defaults where absent); ``type: avic`` takes no ``modes``."""
+        args = dict(cfg)
+        if args.get("type") == MODAL_TYPE:
+            args["modes"] = args.get("modes") or {}
+        elif "modes" in args:
+            raise ConfigError(
+                f"{key}.modes", f"needs type {MODAL_TYPE} (Algorithm 1), got {args.get('type')!r}"
+            )
+        return cls(**constructor_kwargs(cls, args, key), key=key)
+
+    @property
+    def type_name(self) -> str:
+        """The registry name: ``avic``, or ``avic_modes`` with Algorithm 1."""
+        return "avic" if self.modes is None else MODAL_TYPE
 
     def reset(self, dim: int, control_dt: float) -> None:
         super().reset(dim, control_dt)
@@ -178,26 +193,25 @@ class AVIC(Controller):
         self._lam = 0.0  # start stiff (K_max) until the model has proven itself
         h = horizon_steps(self.model.horizon_s, control_dt, f"{self.key}.forward_model.horizon_s")
         self.forecast = ForecastBuffer(h)
+        if self.modes is not None:
+            self.modes.reset(control_dt)
+            self.model = self.modes.model
         tau = self.error_lowpass_s
         self._err_alpha = (
             1.0 if tau == 0.0 else first_order_alpha(control_dt, 1 / (2 * math.pi * tau))
         )
         self._err_lp = math.nan  # ε̄_t: the low-passed error of this trial
         # Learning X_t just before predicting (one kernel call) changes nothing in between
-        # when the hooks are AVIC's own: only learn() touches the model, and hold_k_max,
-        # the gains and the force loop do not read it.
-        cls = type(self)
-        self._fused = (
-            cls.learn is AVIC.learn
-            and cls.hold_k_max is AVIC.hold_k_max
-            and hasattr(self.model, "update_predict")
-        )
+        # with one model: only learn() touches it, and the gains and the force loop do not
+        # read it (Algorithm 1 may hold back or replay a sample, so it learns separately).
+        self._fused = self.modes is None and hasattr(self.model, "update_predict")
         self.last_feedforward = np.zeros(dim)  # λ Ŵ subtracted by the last step (Eq. 4a)
         self._signals = {  # the loop's keys after the gains, as FixedImpedance logs them
             "stiffness_Npm": math.nan,
             "damping_Nspm": self.loop.damping_for(self.k_max),
             **self.loop.signals(),
             **self._avic_signals(math.nan, math.nan, math.nan, math.nan),
+            **({} if self.modes is None else self.modes.last_signals),
         }
 
     @property
@@ -235,7 +249,12 @@ class AVIC(Controller):
         """Eq. 4a–4c: learn from the newest sample, adapt λ and K_p, add the feed-forward."""
         s = magnitudes(obs.lin_vel, obs.ang_vel, obs.force, obs.torque)
         d = s[2:N_STATE]
-        self.before_step(obs, target, s)
+        modes = self.modes
+        if modes is not None:  # Algorithm 1, lines 2–7, on this step's measurements
+            modes.before_step(obs, target)
+            self._signals.update(modes.last_signals)
+            if modes.switched:
+                self._use_mode_model()
         s_past, pred_now = self.forecast.past()  # S_{t−H} and D̂_t = f(S_{t−H})
         err = persist = pred = math.nan
         fused = self._fused and s_past is not None  # learn with the prediction below
@@ -248,7 +267,7 @@ class AVIC(Controller):
             if not fused:
                 self.learn(s_past, d)
         calibrating = self.calibrating  # fixed during a trial
-        stiff = not self.adaptive or calibrating or self.hold_k_max()
+        stiff = not self.adaptive or calibrating or (modes is not None and modes.hold_k_max())
         lam = 0.0 if stiff else self._lam
         kp = self.k_max if stiff else self.stiffness_for(lam)
         loop = self.loop
@@ -296,18 +315,21 @@ class AVIC(Controller):
         else:
             self._lam = self.logistic(self._err_lp)
 
-    # Hooks for Algorithm 1 (seed A §3.2), used by ccm.control.adaptive.modal; plain AVIC learns
-    # every step with one model and never forces K_max.
-    def before_step(self, obs: Observation, target: TargetSample, s: np.ndarray) -> None:
-        """Called first in every step with the state magnitudes S_t (may swap ``self.model``)."""
+    def _use_mode_model(self) -> None:
+        """Make the current mode's model the one that predicts: the previous model's
+        predictions are forgotten and λ restarts from K_max (its first error sets it)."""
+        assert self.modes is not None
+        self.model = self.modes.model
+        self.forecast.forget_predictions()
+        self._lam = 0.0
 
     def learn(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
-        """Revise the forward model with X_t = [S_{t−1}, D_t] (Eq. 5)."""
-        self.model.update(s_prev, d_now)
-
-    def hold_k_max(self) -> bool:
-        """Whether this step must use K_max regardless of λ (Algorithm 1, line 3)."""
-        return False
+        """Revise the forward model with X_t = [S_{t−1}, D_t] (Eq. 5); with Algorithm 1 the
+        current mode's model, or none while the mode is being decided."""
+        if self.modes is None:
+            self.model.update(s_prev, d_now)
+        else:
+            self.modes.learn(s_prev, d_now)
 
     def predicted_wrench(self, f_mag: float, obs: Observation) -> np.ndarray:
         """Ŵ: the predicted external force as a vector (see ``ff_direction``)."""
@@ -326,7 +348,11 @@ class AVIC(Controller):
         return obs.lin_vel * (f_mag * along / (fm * speed))
 
     def end_trial(self) -> None:
-        self.model.end_trial()
+        """The forward model's (every mode's) end-of-trial hook, and the calibration."""
+        if self.modes is None:
+            self.model.end_trial()
+        else:
+            self.modes.end_trial()
         self._end_calibration_trial()
 
     def _end_calibration_trial(self) -> None:
@@ -382,20 +408,35 @@ class AVIC(Controller):
         self._calib_trials, self._calib_errors = trials, errors
 
     def state_dict(self) -> dict[str, Any]:
-        """The forward model (:meth:`IncrementalForwardModel.state_dict` or the fixed GMM's)
-        and the calibration of ε₀ and r; λ and the predictions are per-trial state."""
-        return {"forward_model": self.model.state_dict(), "calibration": self.calibration_state()}
+        """The calibration of ε₀ and r and the forward model
+        (:meth:`IncrementalForwardModel.state_dict` or the fixed GMM's), or with Algorithm 1
+        :meth:`ContactModes.state_dict`; λ and the predictions are per-trial state."""
+        if self.modes is None:
+            return {
+                "forward_model": self.model.state_dict(),
+                "calibration": self.calibration_state(),
+            }
+        return {"calibration": self.calibration_state(), **self.modes.state_dict()}
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
-        """Restore :meth:`state_dict` output into the forward model built from the config
+        """Restore :meth:`state_dict` output into the forward model(s) built from the config
         (same ``forward_model.kind`` and ``feature_scale``; other settings stay the config's).
 
         Raises:
             ConfigError: ``init_from``, on a malformed or mismatched state.
         """
-        check_state_keys(state, ("forward_model", "calibration"))
-        try:  # the model changes only if the whole snapshot is accepted
-            self.model.load_state_dict(state["forward_model"])
+        own = ("forward_model",) if self.modes is None else ("classifier", "modes")
+        check_state_keys(state, ("calibration", *own))
+        try:  # the model(s) change only if their whole snapshot is accepted
+            if self.modes is None:
+                self.model.load_state_dict(state["forward_model"])
+            else:
+                self.modes.load_state_dict({k: state[k] for k in own})
             self.load_calibration_state(state["calibration"])
         except STATE_ERRORS as exc:
             raise state_error(exc) from None
+        if self.modes is not None:
+            self.model = self.modes.model
+            if hasattr(self, "forecast"):
+                self.forecast.forget_predictions()
+            self._lam = 0.0

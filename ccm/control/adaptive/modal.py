@@ -1,7 +1,9 @@
-"""AVIC with contact-mode detection and one forward model per mode (seed A §3.2, Algorithm 1).
+"""Contact-mode detection and one forward model per mode (seed A §3.2, Algorithm 1).
 
-The base controller of Eq. 4a–4c (:class:`ccm.control.adaptive.avic.AVIC`) runs with the forward
-model of the *current contact mode*. Algorithm 1 of seed A adds, every control step:
+:class:`ContactModes` is a part that the controller of Eq. 4a–4c
+(:class:`ccm.control.adaptive.avic.AVIC`, ``type: avic_modes``) holds as its ``modes``
+member: the controller then runs with the forward model of the *current contact mode*.
+Algorithm 1 of seed A adds, every control step:
 
 1. **Trigger** (line 2): a sudden change of a wrench feature (:class:`TransitionTrigger`),
    or first sliding after (re)gaining contact, starts a transition.
@@ -35,8 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.control.adaptive.avic import AVIC
-from ccm.control.base import STATE_ERRORS, check_state_keys, state_error
+from ccm.control.base import check_state_keys
 from ccm.core.errors import (
     ConfigError,
     check_choice,
@@ -82,7 +83,7 @@ def _trigger(key: str, value: Any) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class ModeSettings:
-    """The ``modes`` block of Algorithm 1 (meanings: :class:`ModalAVIC`), as typed fields."""
+    """The ``modes`` block of Algorithm 1 (meanings: :class:`ContactModes`), as typed fields."""
 
     feature: str = checked(one_of(FEATURE_KINDS), "force_ratio")
     trigger: dict[str, Any] = checked(_trigger, factory=lambda: _trigger("modes.trigger", None))
@@ -102,8 +103,9 @@ class ModeSettings:
         return cls(**field_values(cls, cfg, key)[0])
 
 
-class ModalAVIC(AVIC):
-    """AVIC (Eq. 4a–4c) run per contact mode, with Algorithm 1's detection (seed A §3.2).
+class ContactModes:
+    """Algorithm 1 of seed A (§3.2): contact-mode detection and one forward model per mode,
+    held by :class:`ccm.control.adaptive.avic.AVIC` as its ``modes`` member.
 
     Args:
         modes: Mode-detection settings (all validated, errors name ``controller.modes.*``):
@@ -117,66 +119,66 @@ class ModalAVIC(AVIC):
             ``feature_lowpass_hz`` (first-order low-pass on ‖F_t‖, ‖τ‖ and R before Eq. 7,
             restarted on each contact; ``None`` = raw samples; a batch then starts three
             time constants after its trigger).
-        **avic: the :class:`AVIC` arguments (gains, forward model, impedance).
+        free_model: the free-space forward model (mode −1), the controller's own.
+        forward_model: the ``forward_model`` block each new mode's model is built from.
+        key: the controller's config key (errors name ``<key>.modes.*``).
     """
 
-    def __init__(self, modes: Mapping[str, Any] | None = None, **avic: Any) -> None:
-        super().__init__(**avic)
-        key = f"{avic.get('key', 'controller')}.modes"
-        self.modes_key = key
-        self.mcfg = mcfg = ModeSettings.from_mapping(modes, key)
-        self._fm_cfg = dict(avic.get("forward_model") or {})
-        self._fm_key = f"{avic.get('key', 'controller')}.forward_model"
+    def __init__(
+        self,
+        modes: Mapping[str, Any] | None,
+        free_model: Any,
+        forward_model: Mapping[str, Any] | None = None,
+        key: str = "controller",
+    ) -> None:
+        self.key = f"{key}.modes"
+        self.mcfg = mcfg = ModeSettings.from_mapping(modes, self.key)
+        self._fm_cfg = dict(forward_model or {})
+        self._fm_key = f"{key}.forward_model"
         # learned state, kept across trials (reset() does not clear it)
         self.classifier = ModeClassifier(
             **{"threshold": 0.05, "confidence_threshold": 0.6, **mcfg.classifier},
             min_batch=mcfg.batch_size,
-            key=f"{key}.classifier",
+            key=f"{self.key}.classifier",
         )
         self.make_trigger()  # validates the trigger settings now, not at the first step
-        self.models: dict[int, Any] = {FREE: self.model}
+        self.models: dict[int, Any] = {FREE: free_model}
         self.samples: dict[int, int] = {FREE: 0}
-
-    BLOCKS = ("modes",)
+        self.mode = FREE
+        self.model = free_model
 
     def make_trigger(self) -> TransitionTrigger:
         """A fresh :class:`TransitionTrigger` from the configured settings."""
         args = dict(self.mcfg.trigger["args"])
         args.setdefault("refractory_steps", self.mcfg.batch_size)
-        return TransitionTrigger(**args, key=f"{self.modes_key}.trigger")
+        return TransitionTrigger(**args, key=f"{self.key}.trigger")
 
-    def reset(self, dim: int, control_dt: float) -> None:
-        super().reset(dim, control_dt)
+    def reset(self, control_dt: float) -> None:
+        """A new trial: free space, no batch, a fresh trigger (the modes stay)."""
+        mcfg = self.mcfg
         self.trigger = self.make_trigger()
-        self.mode = FREE
-        self.model = self.models[FREE]
+        self.mode, self.model = FREE, self.models[FREE]
+        self.switched = False  # whether the last before_step changed the mode
         self._collecting = False
         self._pending = False  # in contact but not yet classified
         self._batch: list[np.ndarray] = []
         self._replay: list[tuple[np.ndarray, np.ndarray]] = []
         self._conf = (math.nan, math.nan)
-        self._off = self.mcfg.contact_loss_steps + 1  # steps since R last exceeded min_normal_force
+        self._off = mcfg.contact_loss_steps + 1  # steps since R last exceeded min_normal_force
         self._lp: tuple[float, ...] | None = None  # low-passed (‖F_t‖, ‖τ‖, R)
-        self._alpha = (
-            1.0
-            if self.mcfg.feature_lowpass_hz is None
-            else first_order_alpha(control_dt, self.mcfg.feature_lowpass_hz)
-        )
+        hz = mcfg.feature_lowpass_hz
+        self._alpha = 1.0 if hz is None else first_order_alpha(control_dt, hz)
         # a batch starts settle_time_constants filter time constants (3: 95 % of a step) after
         # its trigger, so it holds the new surface's ratio, not the filter's ramp from the old one
         self.settle_steps = (
             0
-            if self.mcfg.feature_lowpass_hz is None
-            else math.ceil(
-                self.mcfg.settle_time_constants
-                / (2.0 * math.pi * self.mcfg.feature_lowpass_hz)
-                / control_dt
-            )
+            if hz is None
+            else math.ceil(mcfg.settle_time_constants / (2.0 * math.pi * hz) / control_dt)
         )
         self._settle = 0
-        self._signals.update(self._mode_signals(0.0, 0.0, 0.0))
+        self.last_signals = self._signals(0.0, 0.0, 0.0)
 
-    def _mode_signals(self, trig: float, event: float, collecting: float) -> dict[str, float]:
+    def _signals(self, trig: float, event: float, collecting: float) -> dict[str, float]:
         return {
             "mode": float(self.mode),
             "mode_trigger": trig,
@@ -218,8 +220,9 @@ class ModalAVIC(AVIC):
             return True, None, f_t
         return True, feature_vector(f_t, tau, r, self.mcfg.feature), f_t
 
-    def before_step(self, obs: Observation, target: TargetSample, s: np.ndarray) -> None:
-        """Algorithm 1, lines 2–7, on this step's measurements."""
+    def before_step(self, obs: Observation, target: TargetSample) -> None:
+        """Algorithm 1, lines 2–7, on this step's measurements (sets :attr:`switched`)."""
+        self.switched = False
         trig = event = 0.0
         contact, feat, f_t = self.contact_state(obs, target)
         self._off = 0 if contact else self._off + 1
@@ -246,7 +249,7 @@ class ModalAVIC(AVIC):
                 self._batch.append(feat)
                 if len(self._batch) >= self.mcfg.batch_size:
                     event = self._decide()
-        self._signals.update(self._mode_signals(trig, event, float(self._collecting)))
+        self.last_signals = self._signals(trig, event, float(self._collecting))
 
     def _decide(self) -> float:
         """Classify the batch (Algorithm 1, line 4); 1.0 = known mode, 2.0 = new mode."""
@@ -263,11 +266,11 @@ class ModalAVIC(AVIC):
         return 2.0 if decision.is_new else 1.0
 
     def _switch(self, mode: int) -> None:
-        """Make ``mode``'s model current; λ restarts from K_max (its first error sets it)."""
+        """Make ``mode``'s model current (the controller then forgets the previous model's
+        predictions and restarts λ from K_max)."""
         self.mode = mode
         self.model = self.models[mode]
-        self.forecast.forget_predictions()  # the previous model made them
-        self._lam = 0.0
+        self.switched = True
 
     def learn(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
         """Revise the current mode's model; during a batch, keep the sample for the decided
@@ -291,17 +294,14 @@ class ModalAVIC(AVIC):
         """Every mode's model gets the end-of-trial hook (modes persist across trials)."""
         for model in self.models.values():
             model.end_trial()
-        self._end_calibration_trial()
 
     # ------------------------------------------------------------------ learned state
 
     def state_dict(self) -> dict[str, Any]:
         """The mode classifier, and per mode (``-1`` = free space) its forward model and the
-        number of samples it has been revised with (``min_mode_samples``), and the
-        calibration of ε₀ and r (:meth:`AVIC.calibration_state`). Batches, the trigger and the
-        current mode are per-trial state."""
+        number of samples it has been revised with (``min_mode_samples``). Batches, the
+        trigger and the current mode are per-trial state."""
         return {
-            "calibration": self.calibration_state(),
             "classifier": self.classifier.state_dict(),
             "modes": [
                 {"mode": m, "samples": self.samples[m], "forward_model": fm.state_dict()}
@@ -312,42 +312,36 @@ class ModalAVIC(AVIC):
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         """Restore :meth:`state_dict` output. Classifier and forward-model settings stay
         this config's; the modes, their clusters, models and sample counts come from
-        ``state``. The current mode becomes free space.
+        ``state``. Nothing changes unless all of it is accepted; the mode becomes free space.
 
         Raises:
-            ConfigError: ``init_from``, on a malformed or mismatched state.
+            ValueError, TypeError, KeyError: on a malformed or mismatched state.
         """
-        check_state_keys(state, ("calibration", "classifier", "modes"))
-        try:
-            settings = self.classifier.state_dict()["settings"]
-            saved = {**state["classifier"], "settings": settings}
-            classifier = ModeClassifier.from_state_dict(saved)
-            models: dict[int, Any] = {}
-            samples: dict[int, int] = {}
-            for rec in state["modes"]:
-                check_state_keys(rec, ("mode", "samples", "forward_model"))
-                mode = rec["mode"]
-                if isinstance(mode, bool) or not isinstance(mode, int) or mode in models:
-                    raise ValueError(f"mode ids must be distinct integers, got {mode!r}")
-                fm = make_forward_model(dict(self._fm_cfg), self._fm_key)
-                fm.load_state_dict(rec["forward_model"])
-                models[mode] = fm
-                samples[mode] = check_int_nonneg(f"modes[{mode}].samples", rec["samples"])
-            n_features = len(feature_vector(1.0, 1.0, 1.0, self.mcfg.feature))
-            if classifier.n_features_in_ not in (None, n_features):
-                raise ValueError(
-                    f"the saved modes have {classifier.n_features_in_} features, "
-                    f"modes.feature={self.mcfg.feature} has {n_features}"
-                )
-            expected = [FREE, *range(classifier.n_modes)]
-            if sorted(models) != expected:
-                raise ValueError(
-                    f"modes {sorted(models)} do not match the classifier's {expected} "
-                    "(-1 = free space)"
-                )
-            self.load_calibration_state(state["calibration"])
-        except STATE_ERRORS as exc:
-            raise state_error(exc) from None
+        check_state_keys(state, ("classifier", "modes"))
+        settings = self.classifier.state_dict()["settings"]
+        classifier = ModeClassifier.from_state_dict({**state["classifier"], "settings": settings})
+        models: dict[int, Any] = {}
+        samples: dict[int, int] = {}
+        for rec in state["modes"]:
+            check_state_keys(rec, ("mode", "samples", "forward_model"))
+            mode = rec["mode"]
+            if isinstance(mode, bool) or not isinstance(mode, int) or mode in models:
+                raise ValueError(f"mode ids must be distinct integers, got {mode!r}")
+            fm = make_forward_model(dict(self._fm_cfg), self._fm_key)
+            fm.load_state_dict(rec["forward_model"])
+            models[mode] = fm
+            samples[mode] = check_int_nonneg(f"modes[{mode}].samples", rec["samples"])
+        n_features = len(feature_vector(1.0, 1.0, 1.0, self.mcfg.feature))
+        if classifier.n_features_in_ not in (None, n_features):
+            raise ValueError(
+                f"the saved modes have {classifier.n_features_in_} features, "
+                f"modes.feature={self.mcfg.feature} has {n_features}"
+            )
+        expected = [FREE, *range(classifier.n_modes)]
+        if sorted(models) != expected:
+            raise ValueError(
+                f"modes {sorted(models)} do not match the classifier's {expected} (-1 = free space)"
+            )
         self.classifier, self.models, self.samples = classifier, models, samples
         self._switch(FREE)
 

@@ -6,7 +6,7 @@ Two kernels, one call each per physics step of :class:`ccm.sim.pybullet.backend.
   of :mod:`ccm.sim.pybullet.dynamics`),
   ``τ = Jᵀ [f; m + m_hold] + h − Jᵀ Λ J̇ q̇ + N τ₀`` with ``Λ = (J M⁻¹ Jᵀ)⁻¹`` and
   ``N τ₀ = τ₀ − Jᵀ Λ J M⁻¹ τ₀``. The readable form, on PyBullet's own queries, is
-  ``PyBullet3D._torques_pybullet``; ``tests/test_panda_dynamics.py`` checks that the two
+  ``TorqueLoop._torques_pybullet``; ``tests/test_panda_dynamics.py`` checks that the two
   agree.
 * :func:`tool_sense`: the tool point's state from the tool link's state, and the external
   wrench from the tool joint's F/T reading by the Newton–Euler balance of the tool

@@ -9,44 +9,13 @@ tool point, the F/T sensor, the contact ground truth and the compliant tool cont
 described in :mod:`ccm.sim.pybullet.robot`):
 
 * **Torque control.** The default velocity motors are switched off (``VELOCITY_CONTROL``
-  with force 0) and ``TORQUE_CONTROL`` is re-applied every physics step (it lasts one step).
-  Every physics step, with the command held (zero-order hold over ``control_decimation``
-  steps)::
-
-      τ = Jᵀ [f; m + m_hold] + h(q, q̇) − Jᵀ Λ J̇ q̇ + N τ₀
-      h = calculateInverseDynamics(q, q̇, 0)         (gravity + Coriolis: H of seed A Eq. 1)
-      τ₀ = K_n (q_rest − q) − D_n q̇                 (posture toward the start configuration)
-      N = I − Jᵀ Λ J M⁻¹,  Λ = (J M⁻¹ Jᵀ)⁻¹          (dynamically consistent null space)
-
-  The dynamically consistent projector is used so the posture term produces no
-  task-space acceleration, and ``− Jᵀ Λ J̇ q̇`` (``task_coriolis_compensation``; J̇ q̇ from
-  the model or, with ``dynamics: pybullet``, a directional finite difference of the
-  Jacobian) removes the velocity-product term, so that ``ẍ = Λ⁻¹ W``: with a zero wrench
-  the tool stays put (issue #4 check 3) even while the posture term moves the elbow. The
-  simple projector ``I − Jᵀ J⁺ᵀ`` would leak posture torques into the task space.
-  ``m_hold = K_o e_R − D_o ω`` is an optional orientation hold toward the start orientation
-  (``orientation_stiffness``/``orientation_damping``): ccm's controllers close the
-  translational loop only in 3D (``FixedImpedance.rotation_torque`` returns zeros), so the
-  robot keeps its tool orientation itself. Set both gains to 0 to leave rotation to the
-  commanded torque alone. Link and joint damping are set to 0 so ``h`` is exact.
-* **Model terms** (``dynamics``). Default ``pinocchio``: J, J̇ q̇ (exact), h, M⁻¹ Jᵀ and Λ
-  from one Pinocchio call per physics step (:mod:`ccm.sim.pybullet.dynamics`: the same URDF
-  and PyBullet's own link inertias, checked against PyBullet's queries to 1e-8).
-  ``pybullet``: ``calculateJacobian`` (twice: J̇ q̇ is the forward difference above),
-  ``calculateInverseDynamics``, ``calculateMassMatrix`` and two ``np.linalg.inv``.
-* **Table patches** (``patch_mode``). Default ``friction_map``: the table top is one box
-  and, before every physics step, its friction is set to that of the patch under the tool
-  point (the table's own value elsewhere); patches are drawn as visual-only boxes in the
-  GUI. The whole tool face therefore gets one friction value while it straddles a patch
-  edge, switching when the tool point crosses it. ``boxes``: each patch is a thin box flush
-  with the top and the table's top layer is cut around the patches (cells of the grid
-  spanned by the patch edges); geometrically faithful, but the tool face, sunk slightly
-  into the surface it rests on, catches on the side face of the next box: normal-force
-  spikes of 57-136 N at a 10 N press were measured at edge crossings (friction_map: one
-  ~26 N, 7 ms transient from the friction step itself). ``footprint``: the continuous top of
-  ``friction_map``, its friction the pressure-weighted mean over the tool's face from the
-  previous step's table contacts, so it ramps across a patch edge over the face's width
-  (:mod:`ccm.sim.pybullet.footprint`, physics and limits there).
+  with force 0) and ``TORQUE_CONTROL`` is re-applied every physics step (it lasts one step),
+  with the torques of the robot's own loop (:mod:`ccm.sim.pybullet.torque_loop`: gravity and
+  Coriolis compensation, a dynamically consistent posture null space, an optional
+  orientation hold, and its model terms from Pinocchio or PyBullet). Link and joint damping
+  are set to 0 so the compensation is exact.
+* **Table patches** (``patch_mode``: ``friction_map``, ``boxes`` or ``footprint``): the
+  friction under the tool (:class:`ccm.sim.pybullet.footprint.TableFriction`).
 """
 
 from __future__ import annotations
@@ -60,23 +29,18 @@ from ccm.core.errors import ConfigError, SimulationDiverged, check_vector
 from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim.base import Simulator, all_finite
 from ccm.sim.hand import Hand
-from ccm.sim.pybullet._kernels import tool_sense, torque_law
-from ccm.sim.pybullet.dynamics import PandaDynamics, robot_dynamics
-from ccm.sim.pybullet.footprint import face_grid, table_friction
+from ccm.sim.pybullet._kernels import tool_sense
+from ccm.sim.pybullet.footprint import TableFriction
 from ccm.sim.pybullet.robot import (
     DOWN,
     GRAVITY,
     N_ARM,
     box_inertia,
     contact_truth,
-    inverse_dynamics,
     load_robot,
-    nullspace_projection,
     orientation_error,
     set_joint_positions,
     start_ik,
-    task_inertia,
-    tool_jacobian,
     tool_point_in_link,
 )
 from ccm.sim.pybullet.scene import (
@@ -89,6 +53,7 @@ from ccm.sim.pybullet.scene import (
     TableSpec,
     ToolSpec,
 )
+from ccm.sim.pybullet.torque_loop import TorqueLoop
 from ccm.sim.pybullet.world import build_world
 from ccm.sim.sensor import FTSensor
 from ccm.sim.start_pose import check_start_3d
@@ -145,8 +110,8 @@ class PyBullet3D(Simulator):
         self._tip_local = (0.0, 0.0, tool.size[2] / 2.0)
         #: the same point in the tool's URDF link frame (for calculateJacobian), set on reset
         self._tip_link = (0.0, 0.0, tool.size[2])
-        #: Pinocchio's model of the arm (``sim.dynamics: pinocchio``), built on the first reset
-        self._dynamics: PandaDynamics | None = None
+        #: the robot's joint-torque loop (its Pinocchio model built on the first reset)
+        self.torque_loop = TorqueLoop(self.config, self.start_orientation)
         self._tip_local_arr = np.array(self._tip_local)
         self._tool_inertia = np.diag(box_inertia(tool.mass, tool.size))  # tool frame [kg m²]
         #: the tool's centre-of-mass twist at the previous physics step (NaN: none yet)
@@ -161,13 +126,12 @@ class PyBullet3D(Simulator):
         self._dq: np.ndarray | None = None
         self._body_friction: dict[int, float] = {}
         self._box_bodies: set[int] = set()
-        self._q_rest = np.zeros(N_ARM)
-        self._table_body = -1
-        self._table_mu = -1.0
-        self._patch_map: list[tuple[float, float, float, float, float]] = []
-        self._face = (tool.size[0], tool.size[1])  # the tool point's face [m] (footprint)
-        self._grid = face_grid(*self._face, self.config.footprint_grid)
-        self._table_contacts: list[tuple[Any, float]] = []  # last step's (position, N)
+        base_mu = scene.table.friction if scene.table is not None else 0.0
+        face = (tool.size[0], tool.size[1])  # the tool point's face [m] (footprint)
+        #: the table's friction under the tool, set before every physics step
+        self.table = TableFriction(
+            self.config.patch_mode, face, self.config.footprint_grid, base_mu
+        )
         self._steps = 0
         self._rng: np.random.Generator | None = None
         #: the simulated hand on the tool (scene.human), and its mean force over a period
@@ -217,14 +181,12 @@ class PyBullet3D(Simulator):
             numSolverIterations=self.config.solver_iterations, physicsClientId=cid
         )
         self._body_friction = {}
-        self._table_contacts = []
         self._build_scene()
         self._robot, self._tool_link = load_robot(p, cid, self.config)
         self._sensed_joints = [*self._arm, self._tool_link]
         self._q = self._dq = None
         self._tip_link = tool_point_in_link(p, cid, self._robot, self._tool_link, self._tip_local)
-        if self.config.dynamics == "pinocchio" and self._dynamics is None:  # once: same robot
-            self._dynamics = robot_dynamics(p, cid, self._robot, self.config.tool, self._tip_link)
+        self.torque_loop.attach(p, cid, self._robot, self._tool_link, self._tip_link)
         self._place_at_start()
         self._twist_prev = np.full(6, np.nan)
         self._refresh_tip()
@@ -325,27 +287,12 @@ class PyBullet3D(Simulator):
         cfg = self.config
         world = build_world(self._p, self._client, self.scene, cfg.patch_mode, cfg.gui)
         self._body_friction = world.body_friction
-        self._table_body, self._patch_map = world.table_body, world.patch_map
         self._box_bodies = world.box_bodies
-        if world.table_mu is not None:
-            self._table_mu = world.table_mu
+        self.table.attach(world)
 
     def _update_patch_friction(self) -> None:
-        """``friction_map``: give the table the friction of the patch under the tool point;
-        ``footprint``: the pressure-weighted mean under the tool's face (module docstring)."""
-        if not self._patch_map:
-            return
-        base = self.scene.table.friction if self.scene.table is not None else 0.0
-        mu = table_friction(
-            self.config.patch_mode, self._tip[0], self._rot[:, :2], self._table_contacts,
-            self._face, self._grid, self._patch_map, base,
-        )  # fmt: skip
-        if mu != self._table_mu:
-            self._p.changeDynamics(
-                self._table_body, -1, lateralFriction=mu, physicsClientId=self._client
-            )
-            self._table_mu = mu
-            self._body_friction[self._table_body] = mu
+        """The table's friction for the next physics step (:class:`TableFriction`)."""
+        self.table.update(self._p, self._client, self._tip[0], self._rot[:, :2])
 
     def _place_at_start(self) -> None:
         """Put the arm at rest in the start pose (IK seeded from the rest posture)."""
@@ -355,13 +302,7 @@ class PyBullet3D(Simulator):
             self.start_position, self.start_orientation,
         )  # fmt: skip
         set_joint_positions(p, cid, self._robot, q)
-        cfg, zeros = self.config, np.zeros(2 * N_ARM)
-        # the torque law's gains and set points (:func:`torque_law`), the current state
-        # filled in every physics step
-        gains = [cfg.orientation_stiffness, cfg.orientation_damping]
-        self._hold = np.concatenate([gains, self.start_orientation, zeros[:7]])
-        self._posture = np.concatenate([[cfg.nullspace_stiffness, cfg.nullspace_damping], q, zeros])
-        self._q_rest = self._posture[2 : 2 + N_ARM]  # a view: the posture target
+        self.torque_loop.set_rest(q)
 
     # ------------------------------------------------------------------ state and control
 
@@ -408,71 +349,15 @@ class PyBullet3D(Simulator):
         self._twist_prev = state[7:]
         self._ft = (wrench[:3], wrench[3:])
 
-    def _jacobian(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        return tool_jacobian(
-            self._p, self._client, self._robot, self._tool_link, self._tip_link, q, dq
-        )
-
     def _torques(self, wrench: np.ndarray) -> np.ndarray:
-        """τ = Jᵀ W + h(q, q̇) − Jᵀ Λ J̇ q̇ + N τ₀ (module docstring): compiled on Pinocchio's
-        terms (``sim.dynamics: pinocchio``), else :meth:`_torques_pybullet`."""
-        cfg = self.config
-        q, dq = self._joint_state()  # read after the last physics step (_refresh_tip)
+        """The robot's joint torques for ``wrench`` (:class:`TorqueLoop`) at the joint state
+        read after the last physics step (:meth:`_refresh_tip`)."""
+        q, dq = self._joint_state()
         if not all_finite(q, dq):
             raise SimulationDiverged(
                 f"non-finite joint state at t={self._steps * self.dt:.3f} s: q={q.tolist()}"
             )
-        if self._dynamics is None:
-            return self._torques_pybullet(wrench, q, dq)
-        minv, jac, jdq, h = self._dynamics.torque_terms(q, dq)
-        self._hold[6:10] = self._orn
-        self._hold[10:] = self._tip[3]
-        self._posture[2 + N_ARM : 2 + 2 * N_ARM] = q
-        self._posture[2 + 2 * N_ARM :] = dq
-        return torque_law(
-            minv, jac, jdq, h, wrench, self._hold, self._posture, cfg.task_coriolis_compensation
-        )
-
-    def _torques_pybullet(self, wrench: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """The torque law in numpy on PyBullet's queries (``sim.dynamics: pybullet``)."""
-        cfg = self.config
-        use_null = cfg.nullspace_stiffness > 0.0 or cfg.nullspace_damping > 0.0
-        jac, h, jdq, minv_jt, lam = self._model_terms(
-            q, dq, use_null or cfg.task_coriolis_compensation
-        )
-        w = wrench
-        if cfg.orientation_stiffness > 0.0 or cfg.orientation_damping > 0.0:
-            _, orn, _, omega = self._tip
-            hold = cfg.orientation_stiffness * orientation_error(self.start_orientation, orn)
-            hold -= cfg.orientation_damping * omega
-            w = wrench.copy()
-            w[3:] += hold
-        tau = jac.T @ w + h
-        if cfg.task_coriolis_compensation:
-            tau -= jac.T @ (lam @ jdq)
-        if use_null:
-            tau0 = cfg.nullspace_stiffness * (self._q_rest - q) - cfg.nullspace_damping * dq
-            tau += nullspace_projection(jac, lam, minv_jt, tau0)  # N τ₀
-        return tau
-
-    def _model_terms(self, q: np.ndarray, dq: np.ndarray, task: bool) -> tuple[Any, ...]:
-        """``(J, h, J̇ q̇, M⁻¹ Jᵀ, Λ)`` of the torque law (``sim.dynamics``): Pinocchio's in
-        one call, or PyBullet's queries (the last three only if ``task``, else ``None``)."""
-        if self._dynamics is not None:
-            t = self._dynamics.compute(q, dq)
-            return t.jacobian, t.h, t.jdot_qdot, t.minv_jt, t.lam
-        p, cid = self._p, self._client
-        jac = self._jacobian(q, dq)
-        h = inverse_dynamics(p, cid, self._robot, q, dq)
-        if not task:
-            return jac, h, None, None, None
-        minv_jt, lam = task_inertia(p, cid, self._robot, q, jac)  # M⁻¹ Jᵀ, Λ = (J M⁻¹ Jᵀ)⁻¹
-        jdq = None
-        if self.config.task_coriolis_compensation:
-            # J̇ q̇ as the directional derivative of J along q̇ (forward difference)
-            eps = 1e-6
-            jdq = (self._jacobian(q + eps * dq, dq) - jac) @ dq / eps
-        return jac, h, jdq, minv_jt, lam
+        return self.torque_loop.torques(wrench, q, dq, self._orn, self._tip[3])
 
     # ------------------------------------------------------------------ sensing
 
@@ -482,8 +367,7 @@ class PyBullet3D(Simulator):
         (:func:`ccm.sim.pybullet.robot.contact_truth`)."""
         p, cid = self._p, self._client
         pts = p.getContactPoints(bodyA=self._robot, linkIndexA=self._tool_link, physicsClientId=cid)
-        if self._patch_map:  # read by the next step's patch friction (footprint mode) only
-            self._table_contacts = [(c[6], c[9]) for c in pts if c[2] == self._table_body]
+        self.table.observe(pts)  # for the next step's footprint friction
         if not pts:
             return np.zeros(3), np.zeros(3), 0, -1.0, np.zeros(6)
         tip = self._tip[0]
@@ -530,7 +414,7 @@ class PyBullet3D(Simulator):
             n_contacts=n,
             extra={
                 "surface_friction": mu if n > 0 else -1.0,
-                "table_friction": self._table_mu,  # the table's friction this step (patches)
+                "table_friction": self.table.mu,  # the table's friction this step (patches)
                 "contact": 1.0 if n > 0 else 0.0,
                 "table_normal_N": table_n,  # normal force from the table [N]
                 "box_normal_N": box_n,  # ... from scene.boxes (walls) [N]
