@@ -142,6 +142,84 @@ def bench_igmm_step(
     }
 
 
+def _feed(model: Any, fm: Any, X: np.ndarray, S: np.ndarray) -> None:
+    """Learn each row of ``X`` and predict from the matching row of ``S``, untimed."""
+    for x, st in zip(X, S, strict=True):
+        model.partial_fit(x)
+        fm.predict(st)
+
+
+def _window_figures(ns: np.ndarray, nb: int) -> dict[str, float]:
+    """Median µs per step of the first window, the third ([w, 2w) is traced), the last, and
+    the medians of the first and last ten window-medians, from per-block ns per step ``ns``
+    (NaN for untimed blocks) with ``nb`` blocks a window."""
+    first = ns[:nb]  # [0, w)
+    third = ns[2 * nb : 3 * nb]  # [2w, 3w); [w, 2w) is the traced window
+    last = ns[~np.isnan(ns)][-nb:]
+    us_first = float(np.median(first)) / 1e3
+    us_third = float(np.nanmedian(third)) / 1e3 if np.isfinite(third).any() else us_first
+    us_last = float(np.median(last)) / 1e3
+    # The machine is shared: one 10^4-step window can be slowed by a neighbour. A steadier
+    # figure compares the median of the first ten window-medians with that of the last ten.
+    n_win = len(ns) // nb
+    with warnings.catch_warnings():  # the traced windows are all-NaN by design
+        warnings.simplefilter("ignore", RuntimeWarning)
+        win = np.nanmedian(ns[: n_win * nb].reshape(n_win, nb), axis=1) if n_win else np.zeros(0)
+    win = win[np.isfinite(win)]
+    k10 = min(10, len(win) // 2) or 1
+    us_early10 = float(np.median(win[:k10])) / 1e3 if len(win) else us_first
+    us_late10 = float(np.median(win[-k10:])) / 1e3 if len(win) else us_last
+    return {
+        "us_first_10_windows": us_early10,
+        "us_last_10_windows": us_late10,
+        "ratio_10_windows": us_late10 / us_early10,
+        "us_first": us_first,
+        "us_third": us_third,
+        "us_last": us_last,
+    }
+
+
+def _run_stream(
+    model: Any, n_steps: int, seed: int, window: int, block: int
+) -> tuple[np.ndarray, dict[str, int], int | None]:
+    """Feed the porridge stream: ns per step of every timed block (NaN inside the two windows
+    traced by tracemalloc, early and late), their net traced bytes, and K after one window."""
+    fm = model.conditional(IN_IDX, OUT_IDX)
+    traced_windows = {
+        "early": (window, 2 * window),
+        "late": (n_steps - 2 * window, n_steps - window),
+    }
+    cuts = sorted({c for w in traced_windows.values() for c in w})
+    block_ns: list[np.ndarray] = []
+    traced: dict[str, int] = {}
+    k_first = None
+    done = 0  # steps before the current chunk
+    for X, S in porridge_stream(n_steps, seed):
+        n = X.shape[0]
+        bounds = [0] + [c - done for c in cuts if 0 < c - done < n] + [n]
+        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+            g_lo, g_hi = done + lo, done + hi
+            name = next((k for k, (a, b) in traced_windows.items() if a <= g_lo < b), None)
+            if name is None:
+                full = lo + (hi - lo) // block * block
+                block_ns.append(_timed_blocks(model, X[lo:full], S[lo:full], block))
+                _feed(model, fm, X[full:hi], S[full:hi])  # a partial block: run, not timed
+            else:
+                a, b = traced_windows[name]
+                if g_lo == a:
+                    tracemalloc.start()
+                    traced[name] = -tracemalloc.get_traced_memory()[0]
+                _feed(model, fm, X[lo:hi], S[lo:hi])
+                if g_hi == b:
+                    traced[name] += tracemalloc.get_traced_memory()[0]
+                    tracemalloc.stop()
+                block_ns.append(np.full((hi - lo) // block, np.nan))
+            if k_first is None and g_hi >= window:
+                k_first = model.n_components_
+        done += n
+    return np.concatenate(block_ns), traced, k_first
+
+
 def bench_igmm_long(
     n_steps: int = 3_600_000,
     max_components: int = 20,
@@ -170,80 +248,22 @@ def bench_igmm_long(
     warm = _warm_up()
     window = max(block, min(window, n_steps // 4) // block * block)
     model = _model(max_components, sp_min)
-    fm = model.conditional(IN_IDX, OUT_IDX)
     t_start = time.perf_counter()
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     bytes0 = model.nbytes()
-    traced_windows = {
-        "early": (window, 2 * window),
-        "late": (n_steps - 2 * window, n_steps - window),
-    }
-    cuts = sorted({c for w in traced_windows.values() for c in w})
-    block_ns: list[np.ndarray] = []
-    traced: dict[str, int] = {}
-    k_first = None
-    done = 0  # steps before the current chunk
-    for X, S in porridge_stream(n_steps, seed):
-        n = X.shape[0]
-        bounds = [0] + [c - done for c in cuts if 0 < c - done < n] + [n]
-        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
-            g_lo, g_hi = done + lo, done + hi
-            name = next((k for k, (a, b) in traced_windows.items() if a <= g_lo < b), None)
-            if name is None:
-                full = lo + (hi - lo) // block * block
-                block_ns.append(_timed_blocks(model, X[lo:full], S[lo:full], block))
-                for i in range(full, hi):  # a partial block is run but not timed
-                    model.partial_fit(X[i])
-                    fm.predict(S[i])
-            else:
-                a, b = traced_windows[name]
-                if g_lo == a:
-                    tracemalloc.start()
-                    traced[name] = -tracemalloc.get_traced_memory()[0]
-                for i in range(lo, hi):
-                    model.partial_fit(X[i])
-                    fm.predict(S[i])
-                if g_hi == b:
-                    traced[name] += tracemalloc.get_traced_memory()[0]
-                    tracemalloc.stop()
-                block_ns.append(np.full((hi - lo) // block, np.nan))
-            if k_first is None and g_hi >= window:
-                k_first = model.n_components_
-        done += n
+    ns, traced, k_first = _run_stream(model, n_steps, seed, window, block)
     wall = time.perf_counter() - t_start
-    ns = np.concatenate(block_ns)
-    nb = window // block
-    first = ns[:nb]  # [0, w)
-    third = ns[2 * nb : 3 * nb]  # [2w, 3w); [w, 2w) is the traced window
-    last = ns[~np.isnan(ns)][-nb:]
-    us_first = float(np.median(first)) / 1e3
-    us_third = float(np.nanmedian(third)) / 1e3 if np.isfinite(third).any() else us_first
-    us_last = float(np.median(last)) / 1e3
-    # The machine is shared: one 10^4-step window can be slowed by a neighbour. A steadier
-    # figure compares the median of the first ten window-medians with that of the last ten.
-    n_win = len(ns) // nb
-    with warnings.catch_warnings():  # the traced windows are all-NaN by design
-        warnings.simplefilter("ignore", RuntimeWarning)
-        win = np.nanmedian(ns[: n_win * nb].reshape(n_win, nb), axis=1) if n_win else np.zeros(0)
-    win = win[np.isfinite(win)]
-    k10 = min(10, len(win) // 2) or 1
-    us_early10 = float(np.median(win[:k10])) / 1e3 if len(win) else us_first
-    us_late10 = float(np.median(win[-k10:])) / 1e3 if len(win) else us_last
+    w = _window_figures(ns, window // block)
     return {
-        "us_first_10_windows": us_early10,
-        "us_last_10_windows": us_late10,
-        "ratio_10_windows": us_late10 / us_early10,
+        **w,
         "benchmark": "igmm_long",
         "steps": n_steps,
         "window": window,
         "block": block,
-        "us_first": us_first,
-        "us_third": us_third,
-        "us_last": us_last,
-        "ratio": us_last / us_first,
-        "ratio_vs_third": us_last / us_third,
+        "ratio": w["us_last"] / w["us_first"],
+        "ratio_vs_third": w["us_last"] / w["us_third"],
         "target_ratio": TARGET_RATIO,
-        "meets_target": us_last / us_first <= TARGET_RATIO,
+        "meets_target": w["us_last"] / w["us_first"] <= TARGET_RATIO,
         "us_median_all": float(np.nanmedian(ns)) / 1e3,
         "n_components_after_first_window": k_first,
         "n_components_end": model.n_components_,

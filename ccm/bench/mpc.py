@@ -187,6 +187,39 @@ def _row(
     return row
 
 
+def _feature_table(
+    gp: Any, seed: int, horizon: int, steps: int, codegen: str | None
+) -> list[dict[str, Any]]:
+    """Seed B's Table 2: the solve rate with each MPC feature on, at ``horizon``."""
+    gp_far = synthetic_gp(seed + 1, wall=0.01)  # mode 2: the wall 1 cm further away
+    setups: dict[str, dict[str, Any]] = {
+        "baseline": {},
+        "well-damped": {"well_damped": True},
+        "chance constraint": {"chance": {"f_max": 20.0, "epsilon": 0.1}},
+        "disturbance cost": {
+            "disturbance": {"alpha": 3.0, "omega_p": 94.25},
+            "weights": {"disturbance": 1e5},
+        },
+        "joint-torque cost": {
+            "joint_torque": {"shoulder": [0.1, -0.45, 0.35], "l1": 0.30, "l2": 0.35},
+            "weights": {"joint_torque": 1e-4},
+        },
+        "2 modes": {"gps": [gp, gp_far], "belief": (0.5, 0.5)},
+    }
+    label = f"IPOPT + C ({codegen})" if codegen else "IPOPT"
+    features = []
+    for feat, kw in setups.items():
+        kw = {"well_damped": False, "codegen": codegen, **kw}
+        gps = kw.pop("gps", [gp])
+        r = _row(gps, horizon, steps, label, **kw)
+        func, defined, seed_b = SEED_B_TABLE2[feat]
+        features.append(
+            {"feature": feat, "functionality": func, "defined": defined,
+             "seed_b_hz": seed_b, **r}
+        )  # fmt: skip
+    return features
+
+
 def bench_mpc(
     steps: int = 200,
     horizons: Sequence[int] = (5, 10),
@@ -214,33 +247,7 @@ def bench_mpc(
     default_c = [r for r in rows if r["codegen"] and not r["ipopt_extra"]]
     met = bool(default_c) and all(r["target_met"] and r.get("compiled") for r in default_c)
 
-    features: list[dict[str, Any]] = []
-    if table:
-        gp_far = synthetic_gp(seed + 1, wall=0.01)  # mode 2: the wall 1 cm further away
-        setups: dict[str, dict[str, Any]] = {
-            "baseline": {},
-            "well-damped": {"well_damped": True},
-            "chance constraint": {"chance": {"f_max": 20.0, "epsilon": 0.1}},
-            "disturbance cost": {
-                "disturbance": {"alpha": 3.0, "omega_p": 94.25},
-                "weights": {"disturbance": 1e5},
-            },
-            "joint-torque cost": {
-                "joint_torque": {"shoulder": [0.1, -0.45, 0.35], "l1": 0.30, "l2": 0.35},
-                "weights": {"joint_torque": 1e-4},
-            },
-            "2 modes": {"gps": [gp, gp_far], "belief": (0.5, 0.5)},
-        }
-        label = f"IPOPT + C ({table_codegen})" if table_codegen else "IPOPT"
-        for feat, kw in setups.items():
-            kw = {"well_damped": False, "codegen": table_codegen, **kw}
-            gps = kw.pop("gps", [gp])
-            r = _row(gps, h_max, steps, label, **kw)
-            func, defined, seed_b = SEED_B_TABLE2[feat]
-            features.append(
-                {"feature": feat, "functionality": func, "defined": defined,
-                 "seed_b_hz": seed_b, **r}
-            )  # fmt: skip
+    features = _feature_table(gp, seed, h_max, steps, table_codegen) if table else []
     compile_s = {
         f"H={r['horizon']}": {"wall": r["compile_s"], "cpu": r["compile_cpu_s"]}
         for r in rows
