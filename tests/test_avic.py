@@ -40,12 +40,12 @@ def make(**kw) -> AVIC:
 
 def test_logistic_of_eq_4c() -> None:
     c = make(r=3.0, eps0=1.5)
-    assert c.logistic(1.5) == pytest.approx(0.5)
+    assert c.gate(1.5) == pytest.approx(0.5)
     eps = np.linspace(-5, 50, 500)
-    lam = np.array([c.logistic(e) for e in eps])
+    lam = np.array([c.gate(e) for e in eps])
     assert np.all((lam >= 0) & (lam <= 1))
     assert np.all(np.diff(lam) <= 0), "larger prediction error, smaller lambda"
-    assert c.logistic(1e6) == 0.0 and c.logistic(-1e6) == 1.0  # no overflow
+    assert c.gate(1e6) == 0.0 and c.gate(-1e6) == 1.0  # no overflow
 
 
 def test_stiffness_stays_within_bounds_on_a_random_stream() -> None:
@@ -157,17 +157,17 @@ def test_calibration_sets_eps0_and_r_from_the_first_trial() -> None:
         assert s["stiffness_Npm"] == 3000.0 and s["calibrating"] == 1.0
         if np.isfinite(s["pred_error_N"]):
             errs.append(s["pred_error_N"])
-    assert math.isnan(c.eps0)
+    assert math.isnan(c.gate.eps0)
     c.end_trial()
-    assert c.eps0 == pytest.approx(np.quantile(errs, 0.8))
-    assert c.r == pytest.approx(10.0 / c.eps0)
+    assert c.gate.eps0 == pytest.approx(np.quantile(errs, 0.8))
+    assert c.gate.r == pytest.approx(10.0 / c.gate.eps0)
     c.reset(2, 0.001)
     c.step(obs(force=(-2.0, 0.0)), target())
     assert c.signals()["calibrating"] == 0.0
     state = c.state_dict()
     d = make(calibrate=cal, r=None, eps0=None, forward_model={"kind": "igmm"})
     d.load_state_dict(state)
-    assert (d.eps0, d.r) == (c.eps0, c.r)
+    assert (d.gate.eps0, d.gate.r) == (c.gate.eps0, c.gate.r)
 
 
 def test_calibration_and_fixed_eps0_exclude_each_other() -> None:
@@ -188,6 +188,6 @@ def test_a_frozen_model_calibrates_on_its_training_window() -> None:
     rng = np.random.default_rng(5)
     for _ in range(200):
         c.step(obs(force=(-2.0 + rng.normal(0, 0.3), 0.0)), target())
-    assert math.isnan(c.eps0) and not c.model.ready
+    assert math.isnan(c.gate.eps0) and not c.model.ready
     c.end_trial()
-    assert c.model.ready and c.eps0 > 0.0 and c.r == pytest.approx(20.0 / c.eps0)
+    assert c.model.ready and c.gate.eps0 > 0.0 and c.gate.r == pytest.approx(20.0 / c.gate.eps0)

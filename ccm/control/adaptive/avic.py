@@ -16,14 +16,8 @@ command u_t — applied until t+1 — uses λ_t and D̂_{t+1} (predicted from S_
 H = 1 this is the paper's λ_{t−1}, W_t^pred shifted to the sample at which each quantity
 becomes available.
 
-ε₀ and r from data (``calibrate``). Seed A tunes r and ε₀ "for the task". With
-``calibrate: {trials, quantile, shape}`` they are set from the prediction errors instead:
-the first ``trials`` trials in which the model predicts run at K_max without feed-forward
-(the model is new, as after a new mode in Algorithm 1) while it learns and every ε_t is kept
-(a frozen model that only fits at the end of a trial gives its errors on its training window
-instead); then
-ε₀ = the ``quantile`` of those errors and r = ``shape`` / ε₀, so λ(ε₀/2) = 1/(1 + e^{−shape/2})
-and λ(3ε₀/2) = 1 − that (shape 10: 0.993 and 0.007). experiments/tuning/avic.md records why.
+ε₀ and r of Eq. 4c are given, or set from the first trials' prediction errors
+(``calibrate``: :mod:`ccm.control.adaptive.logistic`).
 
 Sign. Ŵ is the predicted *external* force on the end-effector, so the command subtracts it
 to cancel it (the paper writes +λ W_pred for the compensating wrench).
@@ -54,6 +48,7 @@ from typing import Any, Self
 
 import numpy as np
 
+from ccm.control.adaptive.logistic import LogisticGate
 from ccm.control.adaptive.modal import ContactModes
 from ccm.control.base import STATE_ERRORS, Controller, check_state_keys, state_error
 from ccm.control.loop import HybridLoop
@@ -61,39 +56,17 @@ from ccm.core.errors import (
     ConfigError,
     check_bool,
     check_choice,
-    check_int_positive,
-    check_keys,
     check_nonneg,
     check_positive,
     constructor_kwargs,
 )
-from ccm.core.filters import first_order_alpha, lowpass_sequence
+from ccm.core.filters import first_order_alpha
 from ccm.core.types import Command, Observation, TargetSample
 from ccm.learn.mixtures.forecast import ForecastBuffer, horizon_steps
 from ccm.learn.mixtures.forward_model import N_STATE, magnitudes, make_forward_model
 
 FF_DIRECTIONS = ("against_motion", "measured", "along_motion")
 MODAL_TYPE = "avic_modes"  # the registry name of AVIC with Algorithm 1
-_CALIBRATE_KEYS = ("trials", "quantile", "shape")
-
-
-def check_calibrate(cfg: Mapping[str, Any] | None, key: str) -> dict[str, float] | None:
-    """Validate ``calibrate: {trials >= 1, quantile in (0, 1), shape > 0}`` (or None)."""
-    if cfg is None:
-        return None
-    if not isinstance(cfg, Mapping):
-        raise ConfigError(
-            key, f"must be a mapping {{trials, quantile, shape}} or null, got {cfg!r}"
-        )
-    check_keys(key, cfg, _CALIBRATE_KEYS)
-    q = check_positive(f"{key}.quantile", cfg.get("quantile", 0.9))
-    if q >= 1.0:
-        raise ConfigError(f"{key}.quantile", f"must be in (0, 1), got {q!r}")
-    return {
-        "trials": check_int_positive(f"{key}.trials", cfg.get("trials", 1)),
-        "quantile": q,
-        "shape": check_positive(f"{key}.shape", cfg.get("shape", 10.0)),
-    }
 
 
 class AVIC(Controller):
@@ -148,21 +121,10 @@ class AVIC(Controller):
         if self.k_max < self.k_free:
             raise ConfigError(f"{key}.k_max", f"must be >= k_free={k_free}, got {k_max}")
         self.key = key
-        self.calibrate = check_calibrate(calibrate, f"{key}.calibrate")
-        if self.calibrate is not None:
-            for name, value in (("r", r), ("eps0", eps0)):
-                if value is not None:
-                    raise ConfigError(
-                        f"{key}.{name}", f"is set by {key}.calibrate: give null, got {value!r}"
-                    )
-            self.r, self.eps0 = math.nan, math.nan  # until calibrated
-        else:
-            self.r = check_positive(f"{key}.r", r)
-            self.eps0 = check_nonneg(f"{key}.eps0", eps0)
-        self._calib_errors: list[float] = []
-        self._calib_trials = 0
-        self.error_lowpass_s = check_nonneg(f"{key}.error_lowpass_s", error_lowpass_s)
         self.adaptive = check_bool(f"{key}.adaptive", adaptive)
+        #: λ(ε) of Eq. 4c with its ε₀ and r (given or calibrated)
+        self.gate = LogisticGate(r, eps0, calibrate, active=self.adaptive, key=key)
+        self.error_lowpass_s = check_nonneg(f"{key}.error_lowpass_s", error_lowpass_s)
         self.feedforward = check_bool(f"{key}.feedforward", feedforward)
         self.ff_direction = check_choice(f"{key}.ff_direction", ff_direction, FF_DIRECTIONS)
         self.min_speed = check_nonneg(f"{key}.min_speed", min_speed)
@@ -218,8 +180,7 @@ class AVIC(Controller):
     def calibrating(self) -> bool:
         """True while ``calibrate`` still collects the errors that set ε₀ and r (never for the
         non-adaptive baseline, which does not use them)."""
-        cal = self.calibrate
-        return self.adaptive and cal is not None and self._calib_trials < cal["trials"]
+        return self.gate.calibrating
 
     def _avic_signals(self, pred: float, persist: float, err: float, kp: float) -> dict[str, float]:
         return {
@@ -232,14 +193,6 @@ class AVIC(Controller):
             "stiffness_Npm": kp,
             "calibrating": float(self.calibrating),
         }
-
-    def logistic(self, eps: float) -> float:
-        """λ(ε) of Eq. 4c, in [0, 1]; numerically safe for any ε."""
-        z = -self.r * (eps - self.eps0)  # λ = 1 − 1/(1 + e^z) = e^z / (1 + e^z)
-        if z >= 0.0:
-            return 1.0 / (1.0 + math.exp(-z))
-        ez = math.exp(z)
-        return ez / (1.0 + ez)
 
     def stiffness_for(self, lam: float) -> float:
         """K_p of Eq. 4b."""
@@ -310,10 +263,10 @@ class AVIC(Controller):
         """λ_t of Eq. 4c from ε̄_t (ε_t low-passed), or keep ε̄_t to calibrate ε₀ and r."""
         lp = self._err_lp
         self._err_lp = err if math.isnan(lp) else lp + self._err_alpha * (err - lp)
-        if self.calibrating:
-            self._calib_errors.append(self._err_lp)
+        if self.gate.calibrating:
+            self.gate.keep(self._err_lp)
         else:
-            self._lam = self.logistic(self._err_lp)
+            self._lam = self.gate(self._err_lp)
 
     def _use_mode_model(self) -> None:
         """Make the current mode's model the one that predicts: the previous model's
@@ -353,59 +306,11 @@ class AVIC(Controller):
             self.model.end_trial()
         else:
             self.modes.end_trial()
-        self._end_calibration_trial()
-
-    def _end_calibration_trial(self) -> None:
-        """Count a calibration trial; after the last one set ε₀ and r (module docstring). A
-        trial in which the model made no prediction (and gave no training-window errors)
-        does not count: the controller stays at K_max until it has errors to go by."""
-        if not self.calibrating:
-            return
-        cal = self.calibrate
-        assert cal is not None
-        errs = np.asarray(self._calib_errors, dtype=float)
-        fit = getattr(self.model, "fit_errors", None)
-        if errs.size == 0 and fit is not None and len(fit):  # a frozen model's window
-            errs = lowpass_sequence(np.asarray(fit, dtype=float), self._err_alpha)
-        if errs.size == 0:
-            return
-        self._calib_trials += 1
-        if self.calibrating:
-            return
-        self.eps0 = max(float(np.quantile(errs, cal["quantile"])), 1e-9)
-        self.r = cal["shape"] / self.eps0
-        self._calib_errors = []
+        self.gate.end_trial(getattr(self.model, "fit_errors", None), self._err_alpha)
 
     def report(self) -> dict[str, Any]:
-        """K_free, K_max and the logistic's ε₀ and r (NaN while calibrating), for metrics."""
-        return {"k_free": self.k_free, "k_max": self.k_max, **self._logistic_params()}
-
-    def _logistic_params(self) -> dict[str, float | None]:
-        """ε₀ and r, None until calibrated (or when a non-adaptive controller never is)."""
-        return {
-            k: (v if math.isfinite(v) else None) for k, v in (("eps0", self.eps0), ("r", self.r))
-        }
-
-    def calibration_state(self) -> dict[str, Any]:
-        """JSON-safe calibration progress: trials done, ε₀ and r once set, the errors kept."""
-        cal = self.calibrate is not None and not self.calibrating
-        params = self._logistic_params() if cal else {"eps0": None, "r": None}
-        return {"trials": self._calib_trials, **params, "errors": list(self._calib_errors)}
-
-    def load_calibration_state(self, state: Mapping[str, Any]) -> None:
-        """Restore :meth:`calibration_state` output (ValueError if it does not fit)."""
-        check_state_keys(state, ("trials", "eps0", "r", "errors"))
-        trials = int(state["trials"])
-        errors = [float(e) for e in state["errors"]]
-        if self.calibrate is None:
-            if trials or errors or state["eps0"] is not None:
-                raise ValueError("the saved controller was calibrated; this config is not")
-            return
-        eps0, r = self.eps0, self.r
-        if trials >= self.calibrate["trials"] and state["eps0"] is not None:
-            eps0, r = check_positive("eps0", state["eps0"]), check_positive("r", state["r"])
-        self.eps0, self.r = eps0, r
-        self._calib_trials, self._calib_errors = trials, errors
+        """K_free, K_max and the logistic's ε₀ and r (None while calibrating), for metrics."""
+        return {"k_free": self.k_free, "k_max": self.k_max, **self.gate.params()}
 
     def state_dict(self) -> dict[str, Any]:
         """The calibration of ε₀ and r and the forward model
@@ -414,9 +319,9 @@ class AVIC(Controller):
         if self.modes is None:
             return {
                 "forward_model": self.model.state_dict(),
-                "calibration": self.calibration_state(),
+                "calibration": self.gate.state_dict(),
             }
-        return {"calibration": self.calibration_state(), **self.modes.state_dict()}
+        return {"calibration": self.gate.state_dict(), **self.modes.state_dict()}
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         """Restore :meth:`state_dict` output into the forward model(s) built from the config
@@ -432,7 +337,7 @@ class AVIC(Controller):
                 self.model.load_state_dict(state["forward_model"])
             else:
                 self.modes.load_state_dict({k: state[k] for k in own})
-            self.load_calibration_state(state["calibration"])
+            self.gate.load_state_dict(state["calibration"])
         except STATE_ERRORS as exc:
             raise state_error(exc) from None
         if self.modes is not None:
