@@ -21,8 +21,10 @@ import numpy as np
 from ccm.core.errors import (
     ConfigError,
     check_finite,
+    check_int_nonneg,
     check_keys,
     check_nonneg,
+    check_range,
     check_vector,
     to_plain,
 )
@@ -93,8 +95,6 @@ class SensorConfig:
         dropout_steps: int = 0,
     ) -> SensorConfig:
         """Build from scalars (broadcast to every axis) or per-axis sequences, validating."""
-        from ccm.core.errors import check_int_nonneg, check_range
-
         return cls(
             spike_prob=check_range(f"{prefix}.spike_prob", spike_prob, 0.0, 1.0),
             spike_N=check_nonneg(f"{prefix}.spike_N", spike_N),

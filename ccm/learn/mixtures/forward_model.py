@@ -33,7 +33,14 @@ from typing import Any
 
 import numpy as np
 
-from ccm.core.errors import ConfigError, check_int_positive, check_keys, check_positive
+from ccm.core.errors import (
+    ConfigError,
+    check_choice,
+    check_int_positive,
+    check_keys,
+    check_positive,
+    constructor_kwargs,
+)
 from ccm.core.protocols import ForwardModel
 
 N_STATE = 4
@@ -370,8 +377,6 @@ def make_forward_model(cfg: dict[str, Any], key: str = "controller.forward_model
     ``kind`` picks the model; only its own sub-mapping is used, so a config can carry the
     settings of both kinds and a condition can switch with ``forward_model.kind=…``.
     """
-    from ccm.core.errors import check_choice
-
     cfg = dict(cfg or {})
     check_keys(key, cfg, ("kind", "feature_scale", "horizon_s", *FORWARD_MODELS))
     kind = check_choice(f"{key}.kind", cfg.get("kind", "igmm"), FORWARD_MODELS)
@@ -382,8 +387,6 @@ def make_forward_model(cfg: dict[str, Any], key: str = "controller.forward_model
     sub = dict(cfg.get(kind) or {})
     if kind == "igmm":
         return IncrementalForwardModel(igmm=sub, **shared, key=key)
-    from ccm.core.errors import constructor_kwargs
-
     kwargs = constructor_kwargs(FrozenGMMForwardModel, sub, f"{key}.{kind}")
     for k in shared:
         kwargs.pop(k, None)
