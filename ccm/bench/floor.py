@@ -38,6 +38,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ccm.core.errors import to_plain
+
 
 @dataclass(frozen=True)
 class RunWork:
@@ -65,7 +67,7 @@ def run_work(run_dir: Path) -> RunWork:
     from omegaconf import OmegaConf
 
     cfg = OmegaConf.load(run_dir / ".hydra" / "config.yaml")
-    plain = OmegaConf.to_container(cfg, resolve=True)
+    plain = to_plain(cfg)
     summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
     info = json.loads((run_dir / "run_info.json").read_text(encoding="utf-8"))
     dt = float(plain["sim"]["dt"])
