@@ -3,7 +3,6 @@ on disk: :mod:`ccm.core.timeseries`)."""
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import tempfile
@@ -46,18 +45,21 @@ def write_atomic(path: Path, text: str) -> None:
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> None:
     """Lay out ``fig``, write it to ``path`` as PNG atomically, and close it.
 
-    An opaque figure (every pixel's alpha 255, as with matplotlib's default white face) is
-    stored as RGB rather than RGBA: the same pixels in ~12 % fewer bytes."""
+    The figure is drawn once at ``dpi`` and its pixels are encoded once, by Pillow (the same
+    file as ``savefig`` followed by a re-encode, without the first PNG encode and decode:
+    ~40 % of a figure's cost, issue #20). An opaque figure (every pixel's alpha 255, as with
+    matplotlib's default white face) is stored as RGB rather than RGBA: the same pixels in
+    ~12 % fewer bytes."""
     import matplotlib.pyplot as plt
     from PIL import Image
 
     try:
         fig.tight_layout()
-        buf = io.BytesIO()
-        fig.savefig(buf, dpi=dpi, format="png")
-        image = Image.open(buf)
-        if image.mode == "RGBA" and image.getchannel("A").getextrema() == (255, 255):
-            image = image.convert("RGB")
+        fig.set_dpi(dpi)
+        fig.canvas.draw()
+        rgba = np.asarray(fig.canvas.buffer_rgba())
+        opaque = bool(np.all(rgba[..., 3] == 255))
+        image = Image.fromarray(np.ascontiguousarray(rgba[..., :3]) if opaque else rgba)
         with atomic_path(path) as tmp:
             image.save(tmp, format="png")
     finally:
