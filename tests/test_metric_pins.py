@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from omegaconf import DictConfig
 
+from ccm.metrics._lag_kernels import best_lag_steps, pairwise_sum
 from ccm.metrics.contacts import contact_metrics
 from ccm.metrics.trial import compute_extra_metrics, lag_metrics
 
@@ -46,6 +47,37 @@ def test_lag_is_the_delay_of_the_path_behind_the_target() -> None:
     assert lag_metrics(circle_log(-0.03), 2, params)["lag_s"] == pytest.approx(0.0, abs=1e-9)
     slow = lag_metrics(circle_log(0.08), 2, params)["lag_s"]
     assert slow == pytest.approx(0.08, abs=1e-9), "a path further behind lags more"
+
+
+def _numpy_best_lag(pos: np.ndarray, tgt: np.ndarray, max_shift: int, stride: int) -> int:
+    """The lag search as numpy writes it (the definition the compiled kernel repeats)."""
+    best, best_k = np.inf, 0
+    for k in range(0, max_shift + 1, stride):
+        d = pos[k:] - tgt[: len(pos) - k]
+        err = float(np.mean(np.sum(d * d, axis=1)))
+        if err < best:
+            best, best_k = err, k
+    return best_k
+
+
+def test_lag_kernel_sums_as_numpy_does() -> None:
+    """The compiled lag search adds in numpy's pairwise order: every mean it compares equals
+    numpy's bit for bit (lengths below one 8-block, within a 128-block, and many blocks, also
+    beyond numpy's 8192-element buffer), so it picks the same delay, ties included."""
+    rng = np.random.default_rng(11)
+    for n in (5, 9, 120, 129, 1000, 6001, 9000):
+        values = rng.random(n) ** 3
+        assert 0.0 + pairwise_sum(values, 0, n) == np.add.reduce(values)
+    for dim, n in ((2, 40), (2, 6500), (3, 2100), (2, 9000)):
+        tgt = np.cumsum(rng.normal(size=(n, dim)), axis=0) * 1e-3
+        pos = np.roll(tgt, 17, axis=0) + rng.normal(size=(n, dim)) * 1e-5
+        for stride in (1, 2, 7):
+            max_shift = min(n // 2, 300)
+            assert best_lag_steps(pos, tgt, max_shift, stride) == _numpy_best_lag(
+                pos, tgt, max_shift, stride
+            )
+    flat = np.zeros((50, 2))  # every delay ties: the first (0) wins in both
+    assert best_lag_steps(flat, flat, 25, 1) == _numpy_best_lag(flat, flat, 25, 1) == 0
 
 
 def porridge_log(n: int = 301) -> dict[str, np.ndarray]:

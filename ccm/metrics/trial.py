@@ -10,6 +10,7 @@ import numpy as np
 from ccm.core.errors import ConfigError, check_int_positive, check_positive
 from ccm.core.filters import derivatives
 from ccm.core.protocols import Metric
+from ccm.metrics._lag_kernels import best_lag_steps
 from ccm.metrics.adaptation import measured_force_norm, prediction_skill, stiffness_adaptation
 from ccm.metrics.contacts import contact_metrics
 from ccm.metrics.modes import in_contact_steps, mode_metrics, true_transition_steps
@@ -183,12 +184,8 @@ def lag_metrics(
     pos = np.column_stack([log[f"pos_{a}"] for a in "xyz"[:dim]])
     tgt = np.column_stack([log[f"target_pos_{a}"] for a in "xyz"[:dim]])
     max_shift = min(len(t) // 2, int(round(float(params.get("max_lag_s", 1.0)) / dt)))
-    best, best_k = np.inf, 0
-    for k in range(0, max_shift + 1, max(1, int(round(0.002 / dt)))):
-        d = pos[k:] - tgt[: len(t) - k]
-        err = float(np.mean(np.sum(d * d, axis=1)))
-        if err < best:
-            best, best_k = err, k
+    # every 2 ms of delay; the first smallest mean of ‖x(t_i + k) − x_d(t_i)‖² over i
+    best_k = best_lag_steps(pos, tgt, max_shift, max(1, int(round(0.002 / dt))))
     return {"lag_s": best_k * dt}
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from ccm.control.base import Controller
 from ccm.control.loop import HybridLoop
+from ccm.core import vector
 from ccm.core.errors import check_positive
 from ccm.core.types import Command, Observation, TargetSample
 
@@ -149,12 +150,11 @@ class AIC(Controller):
         g_mup = -self.p_yp * e_yp + self.p_mu * e_mu + lam * self.p_mup * e_mup
         g_mupp = self.p_mup * e_mup
         s = self._signals
-        s["belief_error_m"] = float(np.linalg.norm(e_y))
-        s["belief_lag_m"] = float(np.linalg.norm(target.position - self.mu))
-        s["action_N"] = float(np.linalg.norm(u))
-        hyb = self.loop.signals()
-        s["force_error_N"] = hyb["force_error_N"]
-        s["force_control"] = hyb["force_control"]
+        s["belief_error_m"] = vector.norm(e_y)
+        s["belief_lag_m"] = vector.norm(target.position - self.mu)
+        s["action_N"] = vector.norm(u)
+        s["force_error_N"] = self.loop.force_error_N
+        s["force_control"] = self.loop.force_control
 
         du = -self.k_a * (self.p_y * e_y + self.p_yp * e_yp)
         if d is not None:

@@ -17,6 +17,7 @@ import numpy as np
 
 from ccm.control.base import STATE_ERRORS, Controller, check_state_keys, state_error
 from ccm.control.loop import HybridLoop
+from ccm.core import vector
 from ccm.core.errors import (
     ConfigError,
     check_finite,
@@ -181,12 +182,11 @@ class BAC(Controller):
         self._ep.append(e_p)
         self._step += 1
         s = self._signals
-        s["stiffness_Npm"] = float(np.mean(k))
-        s["damping_Nspm"] = float(np.mean(kd))
-        s["ff_force_N"] = float(np.linalg.norm(f))
-        hyb = self.loop.signals()
-        s["force_error_N"] = hyb["force_error_N"]
-        s["force_control"] = hyb["force_control"]
+        s["stiffness_Npm"] = vector.mean(k)
+        s["damping_Nspm"] = vector.mean(kd)
+        s["ff_force_N"] = vector.norm(f)
+        s["force_error_N"] = self.loop.force_error_N
+        s["force_control"] = self.loop.force_control
         return Command(force=u_motion + f + u_force, torque=self.loop.rotation_torque(obs, target))
 
     def end_trial(self) -> None:
