@@ -2,7 +2,7 @@
 
 The same arithmetic as numpy's functions (``np.add.reduce`` then a division by the count;
 ``sqrt(x · x)``), so the same bits, without their Python wrappers: ~1 µs instead of ~4 µs
-a call, several of which run every control step (issue #20). ``tests/test_vector.py``
+a call, several of which run every control step (issue #20). ``tests/test_step_helpers.py``
 checks equality with numpy.
 """
 
