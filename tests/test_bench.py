@@ -50,6 +50,32 @@ def test_a_loop_row_has_the_raw_loop_and_the_ratio() -> None:
     assert row["raw_us_per_control_step"] > 0.0
     assert row["ratio_vs_raw"] > 0.0
     assert row["x_realtime"] == pytest.approx(row["sim_time_s"] / row["median_wall_s"], rel=1e-12)
+    # the ceiling: the raw loop plus ccm's per-step interface alone, timed in each repeat
+    raw, iface = row["raw_s_per_repeat"], row["interface_s_per_repeat"]
+    assert len(raw) == len(iface) == 2 and min(iface) > 0.0
+    ceilings = [row["sim_time_s"] / (r + i) for r, i in zip(raw, iface, strict=True)]
+    assert row["ceiling_x_realtime"] == pytest.approx(sum(ceilings) / 2, rel=1e-12)
+    assert row["interface_us_per_control_step"] == pytest.approx(
+        1e6 * sum(iface) / 2 / row["control_steps"], rel=1e-12
+    )
+
+
+def test_the_interface_cost_records_the_rows_objects() -> None:
+    """It times whole passes that build and record the objects (more steps take longer;
+    a 3D row's objects are built from its own observation without error)."""
+    from ccm.bench.interface import interface_cost
+
+    comp = components("smoke", "fixed_impedance")
+    assert (
+        0.0
+        < interface_cost(comp.sim, comp.controller, 10)
+        < interface_cost(comp.sim, comp.controller, 20_000)
+    )
+    comp3 = components("changing_surface", "avic_modes", "pybullet3d")
+    try:
+        assert interface_cost(comp3.sim, comp3.controller, 50, repeats=1) > 0.0
+    finally:
+        comp3.sim.close()
 
 
 def test_paper_cpu_minutes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -21,16 +21,16 @@ def test_mean_and_norm_equal_numpy_bit_for_bit() -> None:
 
 def test_recorder_columns_keep_the_steps_values() -> None:
     """The recorder assembles its per-step vectors and signal dicts into columns in step
-    order, with NaN for a signal a step did not log."""
+    order, with NaN for a signal or truth extra a step did not log."""
     from ccm.core.records import TrialRecorder
     from ccm.core.types import Command, Observation, StepInfo, TargetSample
 
-    rec = TrialRecorder(2, ["a", "b"], ["x"])
+    rec = TrialRecorder(2, ["a", "b"], ["x", "y"])
     for k in range(3):
         v = np.array([k, 10.0 + k])
         obs = Observation(0.1 * k, v, np.zeros(1), 2 * v, np.zeros(1), 3 * v, np.ones(1))
         target = TargetSample(0.1 * k, -v, v, v, np.zeros(1), segment=k)
-        info = StepInfo(4 * v, np.zeros(1), 5 * v, k, {"x": float(k)})
+        info = StepInfo(4 * v, np.zeros(1), 5 * v, k, {"x": float(k), "y": 2.0 * k})
         signals = {"a": float(k)} if k == 1 else {"a": float(k), "b": -float(k)}
         rec.record(obs, target, Command(6 * v, np.zeros(1)), info, signals)
     cols = rec.arrays()
@@ -41,6 +41,12 @@ def test_recorder_columns_keep_the_steps_values() -> None:
     np.testing.assert_array_equal(cols["a"], [0.0, 1.0, 2.0])
     np.testing.assert_array_equal(cols["b"], [0.0, np.nan, -2.0])
     np.testing.assert_array_equal(cols["truth_x"], [0.0, 1.0, 2.0])
+    np.testing.assert_array_equal(cols["truth_y"], [0.0, 2.0, 4.0])
+    gap = TrialRecorder(2, [], ["x", "y"])
+    for extra in ({"x": 1.0, "y": 2.0}, {"x": 3.0}):
+        gap.record(obs, target, Command(v, np.zeros(1)), StepInfo(v, v[:1], v, 0, extra), {})
+    np.testing.assert_array_equal(gap.arrays()["truth_y"], [2.0, np.nan])
+    np.testing.assert_array_equal(gap.arrays()["truth_x"], [1.0, 3.0])
     single = TrialRecorder(2, ["a"], [])
     single.record(obs, target, Command(v, np.zeros(1)), info, {"a": 7.0})
     np.testing.assert_array_equal(single.arrays()["a"], [7.0])

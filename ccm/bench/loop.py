@@ -69,13 +69,17 @@ def bench_task(
     """Median timing of one trial of ``task`` with ``controller`` (see the module docstring),
     each trial followed by the engine's raw loop for as many control steps on the same
     simulator (:func:`ccm.bench.engines.raw_loop`); ``ratio_vs_raw`` is the median over the
-    repeats of ccm's wall time over the raw loop's."""
+    repeats of ccm's wall time over the raw loop's. ``ceiling_x_realtime``: the × real time of
+    the raw loop plus ccm's per-step interface alone (:mod:`ccm.bench.interface`, timed after
+    the raw loop in each repeat; the median over the repeats), the most any control law
+    behind that interface can reach on this scene."""
     from ccm.bench.engines import raw_loop
+    from ccm.bench.interface import interface_cost
     from ccm.experiment.trial import run_trial
 
     comp = _components(task, controller, sim)
     sim_time = comp.task.pattern.duration
-    walls, raws = [], []
+    walls, raws, ifaces = [], [], []
     for r in range(repeats):
         if fresh and r > 0:
             comp.sim.close()
@@ -84,14 +88,20 @@ def bench_task(
         rec = run_trial(comp, seed=r, duration_s=sim_time)
         walls.append(time.perf_counter() - t0)
         raws.append(raw_loop(comp.sim, comp.task.pattern, len(rec), seed=r))
+        ifaces.append(interface_cost(comp.sim, comp.controller, len(rec), repeats=1))
     comp.sim.close()
-    wall = statistics.median(walls)
     steps = len(rec)
-    raw = statistics.median(raws)
+    wall, raw, interface = (statistics.median(x) for x in (walls, raws, ifaces))
     return {
         "raw_us_per_control_step": 1e6 * raw / steps,
         "raw_x_realtime": sim_time / raw,
         "ratio_vs_raw": statistics.median(w / r for w, r in zip(walls, raws, strict=True)),
+        "interface_us_per_control_step": 1e6 * interface / steps,
+        "raw_s_per_repeat": raws,
+        "interface_s_per_repeat": ifaces,
+        "ceiling_x_realtime": statistics.median(
+            sim_time / (r + i) for r, i in zip(raws, ifaces, strict=True)
+        ),
         "task": task,
         "controller": controller,
         "sim": sim or "pymunk2d",
@@ -107,10 +117,13 @@ def bench_task(
 
 def print_loop_rows(rows: Sequence[dict[str, Any]]) -> None:
     """The loop table: ccm's µs per control step and × real time, the raw engine loop's µs
-    per step on the same scene, and the ratio ccm / raw (timed in turn, one process)."""
+    per step on the same scene, and the ratio ccm / raw (timed in turn, one process); then
+    the µs of ccm's per-step interface alone and the ceiling × real time of raw + interface
+    (:mod:`ccm.bench.interface`)."""
     print(
         f"{'task':<19}{'controller':<23}{'sim [s]':>8}{'steps':>7}{'µs/step':>9}"
-        f"{'× real time':>12}{'target':>7}{'raw µs':>8}{'ccm/raw':>8}"
+        f"{'× real time':>12}{'target':>7}{'raw µs':>8}{'ccm/raw':>8}{'iface µs':>9}"
+        f"{'ceiling ×':>10}"
     )
     for r in rows:
         tgt = f"≥{r['target_x_realtime']:.0f}" if r["target_x_realtime"] else ""
@@ -118,8 +131,13 @@ def print_loop_rows(rows: Sequence[dict[str, Any]]) -> None:
             f"{r['task']:<19}{r['controller']:<23}{r['sim_time_s']:>8.2f}"
             f"{r['control_steps']:>7d}{r['us_per_control_step']:>9.1f}"
             f"{r['x_realtime']:>12.1f}{tgt:>7}{r['raw_us_per_control_step']:>8.1f}"
-            f"{r['ratio_vs_raw']:>8.2f}"
+            f"{r['ratio_vs_raw']:>8.2f}{r['interface_us_per_control_step']:>9.1f}"
+            f"{r['ceiling_x_realtime']:>10.1f}"
         )
+    print(
+        "iface: ccm's per-step objects alone (target, observation, command, truth, record);"
+        " ceiling: raw + iface, the most a controller behind this interface can reach"
+    )
 
 
 def paper_cpu(paper_dir: Path) -> dict[str, Any] | None:

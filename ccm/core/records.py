@@ -94,7 +94,7 @@ def axes_columns(log: Mapping[str, np.ndarray], prefix: str, dim: int) -> np.nda
 def _columns(keys: Sequence[str], dicts: Sequence[Mapping[str, float]]) -> dict[str, np.ndarray]:
     """Column ``k`` of a list of per-step dicts for each of ``keys`` (NaN where a step lacks
     ``k``): one table through ``itemgetter`` when every step has every key, as a
-    controller's signals do."""
+    controller's signals and a simulator's truth extras do."""
     if not keys:
         return {}
     try:
@@ -178,8 +178,8 @@ class TrialRecorder:
         )
         out["n_contacts"] = np.array([r[3].n_contacts for r in rows], dtype=float)
         out.update(_columns(self.signal_keys, [r[4] for r in rows]))
-        for k in self.extra_keys:
-            out[f"truth_{k}"] = np.array([r[3].extra.get(k, np.nan) for r in rows], dtype=float)
+        extras = _columns(self.extra_keys, [r[3].extra for r in rows])
+        out.update((f"truth_{k}", v) for k, v in extras.items())
         return out
 
     @property
