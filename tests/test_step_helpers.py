@@ -50,3 +50,20 @@ def test_recorder_columns_keep_the_steps_values() -> None:
     single = TrialRecorder(2, ["a"], [])
     single.record(obs, target, Command(v, np.zeros(1)), info, {"a": 7.0})
     np.testing.assert_array_equal(single.arrays()["a"], [7.0])
+
+
+def test_flat_joins_vectors_as_concatenate_does() -> None:
+    """The recorder's byte join gives np.concatenate's numbers, writable, and falls back
+    for strided views and other dtypes."""
+    from ccm.core.records import _flat
+
+    rng = np.random.default_rng(3)
+    plain = [rng.standard_normal(3) for _ in range(50)]
+    joined = _flat(plain)
+    np.testing.assert_array_equal(joined, np.concatenate(plain))
+    assert joined.dtype == np.float64 and joined.flags.writeable
+    strided = [np.arange(6.0)[::2], np.arange(6.0).reshape(2, 3)[:, 1], np.ones(2)]
+    np.testing.assert_array_equal(_flat(strided), [0.0, 2.0, 4.0, 1.0, 4.0, 1.0, 1.0])
+    mixed = [np.array([1, 2]), np.array([0.5, np.nan], dtype=np.float32)]
+    np.testing.assert_array_equal(_flat(mixed), [1.0, 2.0, 0.5, np.nan])
+    assert _flat(mixed).dtype == np.float64
