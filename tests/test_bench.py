@@ -55,6 +55,7 @@ def test_a_loop_row_has_the_raw_loop_and_the_ratio() -> None:
     assert len(raw) == len(iface) == 2 and min(iface) > 0.0
     ceilings = [row["sim_time_s"] / (r + i) for r, i in zip(raw, iface, strict=True)]
     assert row["ceiling_x_realtime"] == pytest.approx(sum(ceilings) / 2, rel=1e-12)
+    assert row["objects_us_per_control_step"] > 0.0
     assert row["interface_us_per_control_step"] == pytest.approx(
         1e6 * sum(iface) / 2 / row["control_steps"], rel=1e-12
     )
@@ -71,6 +72,7 @@ def test_the_interface_cost_records_the_rows_objects() -> None:
         < interface_cost(comp.sim, comp.controller, 10)
         < interface_cost(comp.sim, comp.controller, 20_000)
     )
+    assert interface_cost(comp.sim, comp.controller, 1_000, record=False) > 0.0
     comp3 = components("changing_surface", "avic_modes", "pybullet3d")
     try:
         assert interface_cost(comp3.sim, comp3.controller, 50, repeats=1) > 0.0

@@ -30,11 +30,14 @@ from ccm.core.records import TrialRecorder
 from ccm.core.types import Command, Observation, StepInfo, TargetSample
 
 
-def interface_cost(sim: Any, controller: Any, steps: int, repeats: int = 3) -> float:
+def interface_cost(
+    sim: Any, controller: Any, steps: int, repeats: int = 3, record: bool = True
+) -> float:
     """Median wall seconds of ``steps`` control steps of the interface alone (module
-    docstring) for ``sim`` and ``controller``. The garbage collector is paused, as in
-    :func:`ccm.experiment.trial.run_trial`. ``sim.reset(seed=0)`` supplies the dimensions
-    and the truth-extra keys."""
+    docstring) for ``sim`` and ``controller``; with ``record=False`` the objects only, not
+    kept or assembled (the part a recorder of preallocated arrays would not remove). The
+    garbage collector is paused, as in :func:`ccm.experiment.trial.run_trial`.
+    ``sim.reset(seed=0)`` supplies the dimensions and the truth-extra keys."""
     obs, info = sim.reset(seed=0)
     shapes = (obs.position.shape[0], obs.orientation.shape[0], obs.torque.shape[0])
     extra_keys = sorted(info.extra)
@@ -42,7 +45,9 @@ def interface_cost(sim: Any, controller: Any, steps: int, repeats: int = 3) -> f
     was_enabled = gc.isenabled()
     gc.disable()
     try:
-        walls = [_interface_pass(shapes, extra_keys, signals, steps) for _ in range(repeats)]
+        walls = [
+            _interface_pass(shapes, extra_keys, signals, steps, record) for _ in range(repeats)
+        ]
     finally:
         if was_enabled:
             gc.enable()
@@ -50,9 +55,13 @@ def interface_cost(sim: Any, controller: Any, steps: int, repeats: int = 3) -> f
 
 
 def _interface_pass(
-    shapes: tuple[int, int, int], extra_keys: list[str], signals: dict[str, float], steps: int
+    shapes: tuple[int, int, int],
+    extra_keys: list[str],
+    signals: dict[str, float],
+    steps: int,
+    record: bool,
 ) -> float:
-    """One timed pass: build, record and assemble ``steps`` steps of objects."""
+    """One timed pass: build ``steps`` steps of objects, and record and assemble them."""
     n, n_orn, n_rot = shapes
     vec, orn, rot = (0.0,) * n, (0.0,) * n_orn, (0.0,) * n_rot
     extra_values = (0.0,) * len(extra_keys)
@@ -67,6 +76,9 @@ def _interface_pass(
         info = StepInfo(
             arr(vec), arr(rot), arr(vec), 0, dict(zip(extra_keys, extra_values, strict=True))
         )
-        rec.record(obs, target, cmd, info, dict(signals))
-    rec.arrays()
+        sig = dict(signals)
+        if record:
+            rec.record(obs, target, cmd, info, sig)
+    if record:
+        rec.arrays()
     return time.perf_counter() - t0
