@@ -43,13 +43,18 @@ def test_a_trial_run_counts_its_simulated_steps_trials_and_mpc_solves(
         {"condition": "b", "mpc_solves": 30.0},
         {"condition": "c", "mpc_solves": 0.0},  # no MPC solve timing recorded for c
     ]
-    info = {"sim_time_s": 12.345, "mpc_cpu_rate_hz": {"a": 200.0, "b": 60.0}}
+    info = {
+        "sim_time_s": 12.345,
+        "mpc_cpu_rate_hz": {"a": 200.0, "b": 60.0},
+        "cpu_s": {"plan": 0.5, "trials": 9.0, "figures": 1.5},
+    }
     w = run_work(_run_dir(tmp_path / "r", cfg, {"trials": trials}, info))
     assert cfg.sim.dt == 0.001
     assert w.physics_steps == 12345
     assert w.resets == 4
     assert w.mpc_s == pytest.approx(150 / 200.0 + 30 / 60.0, rel=1e-12)
     assert w.fits_s == 0.0
+    assert w.cpu_parts == {"plan": 0.5, "trials": 9.0, "figures": 1.5}
     assert w.scene == scene_key(OmegaConf.to_container(cfg, resolve=True))
 
 
@@ -112,6 +117,26 @@ def test_floor_arithmetic_and_the_wall_clock_bound() -> None:
     assert t["floor_cpu_s"] == 13.5 and t["engines_cpu_s"] == 2.0 + 1.0 + 2.0 + 0.5
     assert t["wall_floor_s"] == 13.5 / 2
     assert totals(list(rows.values()), cores=4)["wall_floor_s"] == 5.0  # the longest run
+
+
+def test_the_target_budget_and_the_runs_cpu_parts() -> None:
+    """The target's CPU (wall × cores) less the floor is ccm's own budget, also per physics
+    step; the runs' recorded CPU parts add up over the runs that have them."""
+    runs = {
+        "a": [
+            RunWork("r1", "s1", 1000, 0, 0.0, 0.0, {"plan": 1.0, "trials": 5.0, "figures": 2.0}),
+            RunWork("r2", "s1", 3000, 0, 0.0, 0.0),  # an analysis, or recorded before cpu_s
+        ],
+        "b": [RunWork("r3", "s1", 1000, 0, 0.0, 0.0, {"plan": 0.5, "trials": 1.0})],
+    }
+    rows = floor_rows(runs, {"s1": (1e-3, 0.0)}, {"a": 30.0, "b": 4.0})
+    assert rows[0]["cpu_parts_s"] == {"runs": 1.0, "plan": 1.0, "trials": 5.0, "figures": 2.0}
+    t = totals(rows, cores=2, target_wall_s=10.0)  # floor 5 s of engine, 34 s measured
+    assert t["budget_cpu_s"] == 20.0 and t["own_budget_s"] == 15.0
+    assert t["own_budget_us_per_step"] == pytest.approx(15.0 / 5000 * 1e6)
+    assert t["own_measured_s"] == 29.0
+    assert t["own_measured_us_per_step"] == pytest.approx(29.0 / 5000 * 1e6)
+    assert t["cpu_parts_s"] == {"runs": 2.0, "plan": 1.5, "trials": 6.0, "figures": 2.0}
 
 
 def test_without_a_paper_run_the_floor_says_so(

@@ -47,6 +47,9 @@ def test_goal_inference_finds_the_goal_and_is_deterministic(composer, tmp_path: 
     # Table 2's context: the process's CPU-time rate and IPOPT's iterations per solve
     assert info["mpc_cpu_rate_hz"]["gp_mpc"] > 0 and info["mpc_iterations_median"]["gp_mpc"] >= 1
     assert info["mpc_ms_per_iteration"]["gp_mpc"] > 0
+    # the run's CPU by part, for make bench's paper budget (ccm/bench/floor.py)
+    assert set(info["cpu_s"]) == {"plan", "trials", "figures"}
+    assert all(v >= 0.0 for v in info["cpu_s"].values()) and info["cpu_s"]["trials"] > 0.0
 
 
 def test_contact_well_damped_raises_damping_on_stiff_contact(composer, tmp_path: Path) -> None:

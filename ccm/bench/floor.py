@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -51,6 +51,9 @@ class RunWork:
     resets: int
     mpc_s: float  #: recorded MPC solve CPU time [s]
     fits_s: float  #: recorded model fit and prediction time (H3; wall time) [s]
+    #: the run's CPU seconds per part (``run_info.json``'s ``cpu_s``: plan, trials, figures);
+    #: empty for the analyses and for runs recorded before it existed
+    cpu_parts: Mapping[str, float] = field(default_factory=dict)
 
 
 def scene_key(cfg: Mapping[str, Any]) -> str:
@@ -88,7 +91,9 @@ def run_work(run_dir: Path) -> RunWork:
         resets = len(trials)
     else:  # mpc_convexity: solves alone, no simulation
         steps, resets = 0, 0
-    return RunWork(run_dir.name, scene_key(plain), steps, resets, _mpc_s(summary, info), fits)
+    parts = {k: float(v) for k, v in (info.get("cpu_s") or {}).items()}
+    mpc = _mpc_s(summary, info)
+    return RunWork(run_dir.name, scene_key(plain), steps, resets, mpc, fits, parts)
 
 
 def _mpc_s(summary: Mapping[str, Any], info: Mapping[str, Any]) -> float:
@@ -133,8 +138,18 @@ def floor_rows(
             "longest_run_floor_s": max((sum(f) for f in per_run), default=0.0),
             "measured_cpu_s": measured,
             "ratio": measured / floor if measured is not None and floor > 0 else None,
+            "cpu_parts_s": _parts(runs),
         })  # fmt: skip
     return rows
+
+
+def _parts(runs: Sequence[RunWork]) -> dict[str, float]:
+    """Σ over the runs that recorded them of their CPU seconds per part, and how many did."""
+    out: dict[str, float] = {"runs": float(sum(1 for w in runs if w.cpu_parts))}
+    for w in runs:
+        for k, v in w.cpu_parts.items():
+            out[k] = out.get(k, 0.0) + v
+    return out
 
 
 def _run_floor(w: RunWork, cost: tuple[float, float]) -> tuple[float, float, float, float]:
@@ -142,14 +157,35 @@ def _run_floor(w: RunWork, cost: tuple[float, float]) -> tuple[float, float, flo
     return w.physics_steps * step_s, w.resets * reset_s, w.mpc_s, w.fits_s
 
 
-def totals(rows: Sequence[dict[str, Any]], cores: int) -> dict[str, Any]:
+#: issue #20: ``make reproduce-paper`` in at most 20 min wall on 2 cores
+TARGET_WALL_S = 20 * 60.0
+
+
+def totals(
+    rows: Sequence[dict[str, Any]], cores: int, target_wall_s: float = TARGET_WALL_S
+) -> dict[str, Any]:
     """The whole paper's floor, its engine-only part (engine + resets) and the recorded CPU
     time [s]; the wall-clock floor on ``cores`` cores: max(floor / cores, the longest run's
-    floor)."""
+    floor). The budget: ``target_wall_s`` on ``cores`` cores is at most target × cores CPU
+    seconds, of which what the floor leaves is all ccm may spend on its own work (process
+    start, configs, controllers, recording, metrics, figures), also per physics step."""
     floor = sum(r["floor_s"] for r in rows)
     measured = sum(r["measured_cpu_s"] or 0.0 for r in rows)
     longest = max((r["longest_run_floor_s"] for r in rows), default=0.0)
+    steps = sum(r["physics_steps"] for r in rows)
+    budget = target_wall_s * cores
+    parts: dict[str, float] = {}
+    for r in rows:
+        for k, v in r.get("cpu_parts_s", {}).items():
+            parts[k] = parts.get(k, 0.0) + v
     return {
+        "target_wall_s": target_wall_s,
+        "budget_cpu_s": budget,
+        "own_budget_s": budget - floor,
+        "own_budget_us_per_step": 1e6 * (budget - floor) / steps if steps else None,
+        "own_measured_s": measured - floor,
+        "own_measured_us_per_step": 1e6 * (measured - floor) / steps if steps else None,
+        "cpu_parts_s": parts,
         "floor_cpu_s": floor,
         "engines_cpu_s": sum(r["engine_s"] + r["reset_s"] for r in rows),
         "mpc_cpu_s": sum(r["mpc_s"] for r in rows),
@@ -251,6 +287,26 @@ def print_floor(res: dict[str, Any] | None, paper_dir: Path) -> None:
         f"{t['longest_run_floor_s'] / 60:.1f} min)"
         + ("" if wall is None else f"; that run took {wall / 60:.1f} min wall")
     )
+    _print_budget(t, steps)
+
+
+def _print_budget(t: Mapping[str, Any], steps_m: float) -> None:
+    """The target's CPU budget beside the floor, and where the run's own CPU went."""
+    print(
+        f"issue #20's {t['target_wall_s'] / 60:.0f} min on {t['cores']} cores = "
+        f"{t['budget_cpu_s'] / 60:.1f} CPU-min: the floor leaves {t['own_budget_s'] / 60:.1f} "
+        f"CPU-min for ccm's own work, {_num(t['own_budget_us_per_step'], '.0f')} µs per "
+        f"physics step of the {steps_m:.2f} M; this run spent {t['own_measured_s'] / 60:.1f} "
+        f"({_num(t['own_measured_us_per_step'], '.0f')} µs per step)"
+    )
+    parts = dict(t["cpu_parts_s"])
+    n = int(parts.pop("runs", 0))
+    if n:
+        print(
+            f"  its trial runs' CPU by part ({n} runs' run_info.json cpu_s): "
+            + ", ".join(f"{k} {v / 60:.1f}" for k, v in parts.items())
+            + " CPU-min"
+        )
 
 
 def _num(x: float | None, spec: str) -> str:

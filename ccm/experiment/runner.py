@@ -74,8 +74,10 @@ def run_experiment(
         raise ConfigError(
             "experiment.kind", f"{kind!r} is an analysis: ccm.analyses.dispatch.run runs it"
         )
+    cpu0 = time.process_time()  # CPU seconds per part of the run: run_info.json's cpu_s
     plan = plan_experiment(cfg, compose, settings["trials"])
     check_trial_steps(plan, settings)
+    cpu = {"plan": time.process_time() - cpu0}
     run = _Run(settings, check_extra_metrics(cfg), [] if finished is None else finished)
     total_steps = sum(
         _planned_steps(comp, settings) * _n_trials(ph, settings)
@@ -83,15 +85,16 @@ def run_experiment(
         for ph, comp in phases
     )
     progress = _Progress(total_steps, cfg.experiment.name, show_progress)
-    wall0 = time.perf_counter()
+    wall0, cpu0 = time.perf_counter(), time.process_time()
     try:
         for cond, phases in plan:
             _run_condition(cfg, out_dir, cond.name, phases, run, progress)
     finally:
         progress.close()
+    cpu["trials"] = time.process_time() - cpu0  # loops, recording, metrics, time series
     save_learned_states(out_dir, plan, run.done)
     info = {"wall_time_s": (wall := time.perf_counter() - wall0), "sim_time_s": run.sim_time,
-            "realtime_factor": run.sim_time / wall, **run.timing.info()}  # fmt: skip
+            "realtime_factor": run.sim_time / wall, "cpu_s": cpu, **run.timing.info()}  # fmt: skip
     if settings["animate"] == "first_last":  # clips of each condition's first and last trial
         wall0 = time.perf_counter()
         animate.write_animations(out_dir, cfg, plan, run.logs, run.trials)
@@ -253,7 +256,9 @@ def _write_run(
     settings: Mapping[str, Any], trials_out: list[dict[str, Any]], info: dict[str, Any],
 ) -> dict[str, Any]:  # fmt: skip
     """Figures, the H4 contact table, ``run_info.json`` (wall-clock facts vary run to run,
-    so they live outside the summary) and ``summary.json`` last; returns the summary."""
+    so they live outside the summary; the figures' CPU seconds join ``info["cpu_s"]``) and
+    ``summary.json`` last; returns the summary."""
+    cpu0 = time.process_time()
     if settings["figures"]:
         from ccm.plots.run import write_figures
 
@@ -264,6 +269,7 @@ def _write_run(
             {**settings, "metrics": to_plain(cfg.metrics)},
             trials_out,
         )
+    info.setdefault("cpu_s", {})["figures"] = time.process_time() - cpu0
     table = contact_table(trials_out)
     if table is not None:  # seed A Table 1 layout (H4 contact learning)
         write_atomic(out_dir / "contact_learning.md", table)
