@@ -79,6 +79,12 @@ def test_varying_contact_position_raises_the_predictive_std(fixed_and_varying) -
     assert varying["contact_position_spread_m"] > 0.0 == fixed["contact_position_spread_m"]
     # measured ratio 7.2-12.9 over seeds 0-7; 3x leaves room yet fails if the effect is gone
     assert varying["pred_std_contact_N"] > 3.0 * fixed["pred_std_contact_N"]
+    # the variance the MPC uses (tied σ_n², Eq. 1-2 as printed; issue #37) is below the
+    # predictive std, which adds the noise once more, and rises with the spread too (seed 100:
+    # 0.023 fixed, 0.73 N varying)
+    assert varying["mpc_std_contact_N"] > 3.0 * fixed["mpc_std_contact_N"]
+    for case in (fixed, varying):
+        assert case["mpc_std_contact_N"] < case["pred_std_contact_N"]
 
 
 def test_same_config_and_seed_give_identical_summaries(composer, tmp_path: Path) -> None:
@@ -98,6 +104,7 @@ def test_same_config_and_seed_give_identical_summaries(composer, tmp_path: Path)
         ("gp_contact.guidance=[robot]", "gp_contact.guidance[0]"),
         ("gp_contact.gp.length_scale_bounds=[1.0,0.1]", "gp_contact.gp.length_scale_bounds"),
         ("gp_contact.record_hz=300.0", "gp_contact.record_hz"),
+        ("gp_contact.gp.mpc_variance=shared", "gp_contact.gp.mpc_variance"),
     ],
 )
 def test_bad_config_names_the_key(composer, tmp_path: Path, override: str, key: str) -> None:

@@ -224,3 +224,47 @@ def test_smooth_hinge_recovers_contact_and_matches_casadi() -> None:
         h = 1e-7
         fd = (model.predict(np.array([[p + h], [p - h]]), return_var=False) @ [1, -1]) / (2 * h)
         assert g == pytest.approx(fd, rel=1e-4, abs=1e-2)
+
+
+# ---------------------------------------------------------------- Eq. 1-2 as printed (tied)
+def test_tied_variance_is_eq2_as_printed() -> None:
+    """Seed B Eq. 1-2 with one σ_n² as kernel amplitude and noise: Σ^f = σ_n² − k*ᵀ(K+σ_n²I)⁻¹k*,
+    written out here from the fitted hyperparameters, reverts to σ_n² far from the data
+    (§4.3.1), and is far above the separate model's latent variance on scattered data."""
+    X, f = _contact_data()
+    bounds = {"length_scale_bounds": (0.005, 0.05)}  # so that 0.9 m lies far from the data
+    tied = GPForceModel(mean="hinge", variance="tied", **bounds).fit(X, f)
+    sep = GPForceModel(mean="hinge", **bounds).fit(X, f)
+    assert tied.signal_var_ == tied.noise_var_
+    s2, ls = tied.noise_var_, tied.length_scales_[0]
+    xs = np.array([[0.25], [0.31], [0.9]])
+
+    def k(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return s2 * np.exp(-0.5 * ((a[:, None, 0] - b[None, :, 0]) / ls) ** 2)
+
+    kxx = k(X, X) + s2 * np.eye(len(X))
+    expected = s2 - np.einsum("ij,ji->i", k(xs, X), np.linalg.solve(kxx, k(X, xs)))
+    _, var = tied.predict(xs)
+    np.testing.assert_allclose(var, expected, rtol=1e-8, atol=1e-12)
+    assert var[2] == pytest.approx(s2, rel=1e-6)  # far from the data: the baseline σ_n²
+    # near the data the tied Σ^f keeps a share of the scatter (σ_n² / (points within a length
+    # scale + 1), here ~5 % of σ_n²);
+    # the separate model's latent variance leaves it to σ_n² and is tiny
+    assert var[0] > 0.02 * s2 and var[0] > 20 * sep.predict(xs)[1][0]
+
+
+def test_tied_variance_sits_at_its_likelihood_optimum() -> None:
+    """At the fitted optimum, ∂NLL/∂log σ² = 0 for K = σ²(R + I) gives σ² = rᵀ(R + I)⁻¹r / M
+    (r the residual from the hinge mean): a chain rule that summed the two variance slots'
+    gradients wrongly would leave σ² elsewhere."""
+    X, f = _contact_data(seed=3)
+    gp = GPForceModel(mean="hinge", variance="tied", noise_var_bounds=(1e-6, 1e4)).fit(X, f)
+    r = f - gp._mean_fn(X, gp.hinge_)
+    d = (X[:, None, 0] - X[None, :, 0]) / gp.length_scales_[0]
+    R = np.exp(-0.5 * d**2) + np.eye(len(X))
+    assert gp.noise_var_ == pytest.approx(r @ np.linalg.solve(R, r) / len(X), rel=1e-3)
+
+
+def test_tied_variance_is_checked() -> None:
+    with pytest.raises(ConfigError, match=r"gp\.variance"):
+        GPForceModel(variance="shared")

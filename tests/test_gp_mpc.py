@@ -92,14 +92,7 @@ def test_infeasible_solve_keeps_last_command_and_is_counted(gp2: GPForceModels) 
              "chance": {"f_max": 1e-3, "epsilon": 0.01}},
         mpc_period_s=0.01, init_f_ref=[-3.0, 0.0],
     )  # fmt: skip
-    X, F = _contact_data(2, np.random.default_rng(1))
-    ctrl.reset(2, 0.001)
-    target = TargetSample(0.0, np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(1))
-    for i, (x, f) in enumerate(zip(X, F, strict=True)):
-        for _ in range(ctrl.record_every):
-            ctrl.step(_obs(i * 0.01, x, f), target)
-    ctrl.end_trial()  # fits the GPs and builds Eq. 13
-    ctrl.reset(2, 0.001)
+    target = _demonstrate(ctrl)  # fits the GPs and builds Eq. 13
     for k in range(30):
         ctrl.step(_obs(k * 0.001, np.array([-0.02, 0.0]), np.zeros(2)), target)
     rep = ctrl.report()
@@ -107,6 +100,20 @@ def test_infeasible_solve_keeps_last_command_and_is_counted(gp2: GPForceModels) 
     np.testing.assert_array_equal(ctrl.f_ref, [-3.0, 0.0])  # the last feasible command
     np.testing.assert_array_equal(ctrl.damping, [500.0, 500.0])
     assert ctrl.signals()["mpc_infeasible"] == 3.0
+
+
+def _demonstrate(ctrl: GPMPC) -> TargetSample:
+    """Feed one demonstration (the synthetic contact data at 100 Hz), end it (the GPs are fitted
+    and Eq. 13 built) and start the first execution trial; returns the target to step with."""
+    X, F = _contact_data(2, np.random.default_rng(1))
+    ctrl.reset(2, 0.001)
+    target = TargetSample(0.0, np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(1))
+    for i, (x, f) in enumerate(zip(X, F, strict=True)):
+        for _ in range(ctrl.record_every):
+            ctrl.step(_obs(i * 0.01, x, f), target)
+    ctrl.end_trial()
+    ctrl.reset(2, 0.001)
+    return target
 
 
 def _obs(t: float, x: np.ndarray, f: np.ndarray) -> Observation:
@@ -227,3 +234,29 @@ def test_controller_checks_mpc_settings_at_construction(mpc: dict, key: str) -> 
     with pytest.raises(ConfigError) as err:
         GPMPC(mpc=mpc)
     assert key in str(err.value)
+
+
+def test_the_controller_records_the_sigma_f_its_solve_saw(gp2: GPForceModels) -> None:
+    """Issue #37: each run records Σ^f at the plan's last point ξ_{t+H} (where Eq. 18 is
+    imposed), as the GP gives it there, times gp_var_scale."""
+    ctrl = GPMPC(
+        mass_kg=10.0, demo_modes=[0], max_points=30,
+        gp={"mean": "hinge", "n_restarts": 0, "variance": "tied",
+            "length_scale_bounds": [2e-3, 1e-2]},  # short: Σ^f varies along the plan
+        mpc={"horizon": 4, "ts": 0.01, "gp_var_scale": 3.0}, mpc_period_s=0.01,
+    )  # fmt: skip
+    target = _demonstrate(ctrl)  # fits the GPs and builds Eq. 13
+    assert np.all(np.isnan(ctrl.signals()["sigma_f_x_N2"]))  # no solve yet
+    seen = []
+    solve = ctrl._problem.solve
+    ctrl._problem.solve = lambda *a: seen.append(solve(*a)) or seen[-1]
+    moving = Observation(0.0, np.array([-0.01, 0.0]), np.zeros(1), np.array([0.3, 0.0]),
+                         np.zeros(1), np.zeros(2), np.zeros(1))  # fmt: skip
+    ctrl.step(moving, target)
+    last = seen[-1].predicted[0, -1, :2]
+    assert last[0] > -0.01 + 2e-3  # 0.3 m/s, braked by D / M = 100 /s over the horizon
+    expected = 3.0 * ctrl.models[0].predict(last[None, :])[1][0]
+    sig = ctrl.signals()
+    np.testing.assert_allclose([sig["sigma_f_x_N2"], sig["sigma_f_y_N2"]], expected, rtol=1e-12)
+    start = 3.0 * ctrl.models[0].predict(np.array([[-0.01, 0.0]]))[1][0]
+    assert not np.allclose(expected, start)  # the plan's end, not the measured pose

@@ -50,6 +50,37 @@ def test_a_steady_approach_neither_pulls_back_nor_pauses() -> None:
     assert out["damping_at_contact_Nspm"] == pytest.approx(500.0)  # along x, not y's 100
 
 
+def test_a_trial_without_contact_says_so_and_its_peak_is_no_lower_peak() -> None:
+    """Issue #37: B-6.1-chance-peak requires contact in every trial; a robot that stopped short
+    reads 0 N of peak force, which must not count as a lower peak."""
+    touched = gp_mpc_metrics(_log(_ramp((2.0, 0.03)), contact_from=1.5), 2, PARAMS)
+    short = gp_mpc_metrics(_log(_ramp((2.0, 0.01)), contact_from=None), 2, PARAMS)
+    assert (touched["contact_made"], short["contact_made"]) == (1.0, 0.0)
+    assert short["peak_force_N"] == 0.0 < touched["peak_force_N"]
+    claims = {c.id: c for c in load_claims(CLAIMS)}
+    peak = claims["B-6.1-chance-peak-no-latency"]
+
+    def run(chance: dict) -> dict:
+        none = {"peak_force_N": touched["peak_force_N"], "contact_made": 1.0}
+        return {"experiment": "mpc_contact", "status": "ok",
+                "conditions": {"variance_chance": chance, "variance_none": none}}  # fmt: skip
+
+    stopped = {"peak_force_N": 0.0, "contact_made": 0.0}
+    assert evaluate(peak, [run(stopped)] * 3).verdict == "not reproduced"
+    lower = {"peak_force_N": 0.5 * touched["peak_force_N"], "contact_made": 1.0}
+    assert evaluate(peak, [run(lower)] * 3).verdict == "reproduced"
+
+
+def test_sigma_f_metrics_read_the_solves_and_skip_the_time_before_them() -> None:
+    log = _log(_ramp((2.0, 0.03)), contact_from=1.5)
+    sig = np.full(len(log["t"]), np.nan)
+    sig[40:] = np.linspace(0.5, 2.0, len(sig) - 40)  # NaN until the first solve
+    out = gp_mpc_metrics({**log, "sigma_f_x_N2": sig}, 2, PARAMS)
+    assert out["max_sigma_f_x_N2"] == pytest.approx(2.0)
+    assert out["mean_sigma_f_x_N2"] == pytest.approx(1.25, rel=1e-3)
+    assert "mean_sigma_f_y_N2" not in out  # no signal, no metric
+
+
 def test_a_retreat_before_contact_is_a_pull_back() -> None:
     # 3 cm/s for 1 s (30 mm), back 2 mm at 1 cm/s, then on into contact at 1.5 s
     pos = _ramp((1.0, 0.03), (0.2, -0.01), (1.0, 0.03))

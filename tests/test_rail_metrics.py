@@ -65,6 +65,20 @@ def test_reaching_and_pressing_is_a_success_with_its_time() -> None:
     assert out["near_damping_ratio_varied_repeatable"] == pytest.approx(0.3, rel=0.01)
 
 
+def test_the_ratchet_control_compares_the_two_axes_rises() -> None:
+    """A rise that is only time (D ratcheting up on both axes alike) gives 1; a rise along y
+    alone gives y's near/far ratio (issue #37: the control of B-6.2-rail-impedance-rises)."""
+    out = rail_metrics(_approach(press_N=15.0), 2, PARAMS)
+    # y: 500 far -> 2000 near (x4); x flat at 600 (x1): the repeatable axis rose 4x more
+    assert out["damping_rise_repeatable_over_varied"] == pytest.approx(4.0, rel=0.01)
+    log = _approach(press_N=15.0)
+    ramp = np.linspace(500.0, 2000.0, 2000)  # both axes ratchet up alike with time
+    log["damping_x_Nspm"], log["damping_y_Nspm"] = ramp.copy(), ramp.copy()
+    timed = rail_metrics(log, 2, PARAMS)
+    assert timed["near_damping_y_Nspm"] > 1.5 * timed["far_damping_y_Nspm"]  # "rises near"
+    assert timed["damping_rise_repeatable_over_varied"] == pytest.approx(1.0)  # ... by time
+
+
 def test_a_graze_below_the_force_threshold_is_not_a_success() -> None:
     out = rail_metrics(_approach(press_N=3.0), 2, PARAMS)
     assert out["task_success"] == 0.0

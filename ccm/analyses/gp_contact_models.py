@@ -28,7 +28,10 @@ Predictive std: ``pred_std_*`` is the std of a new *measurement*, sqrt(latent va
 ``latent_std_*`` leaves out the noise. Both are averaged over a grid of x: within
 ``contact_window_m`` of the true contact (clipped to the range of the data) and over
 ``free_window_m`` (distances before the true contact, in free space); ``None`` when a window
-holds no data.
+holds no data. ``mpc_std_*`` is sqrt(Σ^f) of the model the MPC uses, fitted to the same points
+with ``gp.mpc_variance`` (gp_mpc's ``gp.variance``: ``tied``, seed B's Eq. 1-2 as printed,
+where one σ_n² is the kernel amplitude and the noise): the variance that enters the MPC's
+covariance cost and the chance constraint (issue #37), over the same windows.
 """
 
 from __future__ import annotations
@@ -80,7 +83,7 @@ _SUB = {
     "human": ("goal_beyond_wall_m", "stiffness_Npm", "damping_Nspm", "max_force_N",
               "noise_std_N", "noise_cutoff_hz"),
     "gp": ("max_points", "n_restarts", "hinge_form", "length_scale_bounds", "signal_var_bounds",
-           "noise_var_bounds"),
+           "noise_var_bounds", "mpc_variance"),
 }  # fmt: skip
 
 
@@ -127,6 +130,8 @@ def _settings(cfg: DictConfig) -> dict[str, Any]:
     g["max_points"] = check_int_positive("gp_contact.gp.max_points", g.get("max_points"))
     g["n_restarts"] = check_int_nonneg("gp_contact.gp.n_restarts", g.get("n_restarts"))
     _make_gp(g, 0)  # validates hinge_form and the bounds before anything is simulated
+    choices = ("separate", "tied")
+    g["mpc_variance"] = check_choice("gp_contact.gp.mpc_variance", g.get("mpc_variance"), choices)
     steps = s["record_every"] = round(1.0 / (s["record_hz"] * _control_dt(cfg)))
     if steps < 1 or abs(steps * s["record_hz"] * _control_dt(cfg) - 1.0) > 1e-9:
         raise ConfigError(
@@ -233,23 +238,26 @@ def fit_case(
     f = np.concatenate([d["f"] for d in demos])
     idx = np.unique(np.linspace(0, len(x) - 1, s["gp"]["max_points"]).round().astype(int))
     gp = _make_gp(s["gp"], seed)
+    mpc_gp = _make_gp(s["gp"], seed, s["gp"]["mpc_variance"])
     with _one_blas_thread():  # small matrices: threads only add overhead (and noise in timing)
         gp.fit(x[idx, None], f[idx])
+        mpc_gp.fit(x[idx, None], f[idx])
     c1, c2, c3 = gp.hinge_
     true = float(np.mean([d["contact_m"] for d in demos]))
     w = s["contact_window_m"]
     lo_f, hi_f = s["free_window_m"]
 
-    def std(lo: float, hi: float) -> tuple[float | None, float | None]:
+    def std(lo: float, hi: float) -> tuple[float | None, float | None, float | None]:
         lo, hi = max(lo, x.min()), min(hi, x.max())  # within the data
         if lo >= hi:
-            return None, None
-        grid = np.linspace(lo, hi, 101)
-        var = gp.predict(grid[:, None])[1]
-        return float(np.mean(np.sqrt(var + gp.noise_var_))), float(np.mean(np.sqrt(var)))
+            return None, None, None
+        grid = np.linspace(lo, hi, 101)[:, None]
+        var, mpc_var = gp.predict(grid)[1], mpc_gp.predict(grid)[1]
+        pred = float(np.mean(np.sqrt(var + gp.noise_var_)))
+        return pred, float(np.mean(np.sqrt(var))), float(np.mean(np.sqrt(mpc_var)))
 
-    pc, lc = std(true - w, true + w)
-    pf, lf = std(true - hi_f, true - lo_f)
+    pc, lc, mc = std(true - w, true + w)
+    pf, lf, mf = std(true - hi_f, true - lo_f)
     metrics = {
         "contact_position_true_m": true,
         "contact_position_identified_m": float(c3),
@@ -263,6 +271,8 @@ def fit_case(
         "pred_std_free_N": pf,
         "latent_std_contact_N": lc,
         "latent_std_free_N": lf,
+        "mpc_std_contact_N": mc,
+        "mpc_std_free_N": mf,
         "noise_std_N": float(np.sqrt(gp.noise_var_)),
         "signal_std_N": float(np.sqrt(gp.signal_var_)),
         "length_scale_m": float(gp.length_scales_[0]),
@@ -276,14 +286,15 @@ def fit_case(
     return metrics, curves
 
 
-def _make_gp(g: dict[str, Any], seed: int) -> Any:
+def _make_gp(g: dict[str, Any], seed: int, variance: str = "separate") -> Any:
+    """The hinge-mean GP of the settings (``variance``: ``gp.mpc_variance`` for the MPC's)."""
     from ccm.learn.gp.gp_force import GPForceModel
 
     return GPForceModel(mean="hinge", hinge_form=g.get("hinge_form"),
                         length_scale_bounds=g.get("length_scale_bounds"),
                         signal_var_bounds=g.get("signal_var_bounds"),
                         noise_var_bounds=g.get("noise_var_bounds"), n_restarts=g["n_restarts"],
-                        seed=seed, key="gp_contact.gp")  # fmt: skip
+                        variance=variance, seed=seed, key="gp_contact.gp")  # fmt: skip
 
 
 def _one_blas_thread() -> contextlib.AbstractContextManager:

@@ -17,8 +17,14 @@ the GP force variance Σ_f sweeps ``sigma_f_range``; the objective is convex at 
 better on average than explicit Euler (indefinite at typical values), and convexity
 improves as Σ_f grows.
 
-Summary metrics per curve ``<integrator>/<objective>`` (the claims of seed B §5.2 in
-``experiments/claims.yaml``):
+The claims of seed B §5.2 (``experiments/claims.yaml``) are judged over a grid of operating
+points (M, D, prior Σ) with tolerances (issue #37): :mod:`ccm.analyses.mpc_convexity_grid`,
+whose fractions ``grid_frac_<relation>`` / ``grid_informative_<relation>`` and
+``grid_n_points`` go to the condition ``all_curves``; per point, ``operating_points.json``;
+figure ``mpc_convexity_grid.png``.
+
+At the single point of the config (``mass``, ``damping``, ``sigma_x``, ``sigma_v``; Fig. 4's
+analogue, ``mpc_convexity.png``) the diagnostics per curve ``<integrator>/<objective>``:
 
 * ``convex_fraction``: the fraction of the Σ_f grid where λ_min ≥ 0; ``convex_above_sigma_f``
   the smallest Σ_f from which it stays convex (None: never);
@@ -30,7 +36,11 @@ Summary metrics per curve ``<integrator>/<objective>`` (the claims of seed B §5
   "average performance over the range of Σ_f";
 * ``indefinite_fraction_typical``: at Σ_f = ``typical_sigma_f``, the fraction of a log-spaced
   ``n_phi`` × ``n_phi`` grid of (M, D) over ``mass_range`` × ``damping_range`` where the
-  Hessian is indefinite (λ_min < 0): "indefinite for typical parameter values".
+  Hessian is indefinite (λ_min < 0): "indefinite for typical parameter values";
+  ``indefinite_fraction_typical_grid`` the same pooled over the prior stds of
+  ``convexity.grid`` (the claim);
+* ``grid_always_convex_fraction`` / ``grid_never_convex_fraction``: the fractions of the
+  operating points where the curve is convex at every / no swept Σ_f;
 
 and over the six curves (condition ``all_curves``): ``frac_curves_convexity_grows``, the
 fraction of curves whose upper-half convex fraction exceeds the lower-half one, and
@@ -47,6 +57,18 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig
 
+from ccm.analyses.mpc_convexity_grid import (
+    INTEGRATORS,
+    OBJECTIVES,
+    curve_stats,
+    grid_figure,
+    grid_fractions,
+    grid_settings,
+    operating_points,
+    point_relations,
+    rank_corr,
+    saturation_fractions,
+)
 from ccm.core.errors import (
     ConfigError,
     check_bounds,
@@ -56,21 +78,21 @@ from ccm.core.errors import (
 )
 from ccm.core.records import save_figure, write_json_atomic
 
-INTEGRATORS = ("euler", "implicit", "exponential")
-OBJECTIVES = ("trace", "logdet")
 _KEYS = ("ts", "mass", "damping", "sigma_x", "sigma_v", "q", "sigma_f_range", "n_points",
-         "typical_sigma_f", "mass_range", "damping_range", "n_phi")  # fmt: skip
+         "typical_sigma_f", "mass_range", "damping_range", "n_phi",
+         "grid", "tolerance")  # fmt: skip
 
 
 def hessian_functions(settings: Mapping[str, Any]) -> dict[str, Any]:
-    """``{"<integrator>/<objective>": casadi Function (φ = [M, D], Σ_f) → 2×2 Hessian of the
-    one-step cost over φ}`` (Eq. 8, one step; the integrators of the module docstring)."""
+    """``{"<integrator>/<objective>": casadi Function (φ = [M, D], Σ_f, prior = [Σ_xx, Σ_vv])
+    → 2×2 Hessian of the one-step cost over φ}`` (Eq. 8, one step; the integrators of the
+    module docstring). Built once; :func:`batch_min_eig` evaluates it at many points."""
     import casadi as ca
 
     ts = settings["ts"]
     mass, damp, sf = ca.SX.sym("M"), ca.SX.sym("D"), ca.SX.sym("sigma_f")
-    phi = ca.vertcat(mass, damp)
-    sigma = ca.diag(ca.vertcat(settings["sigma_x"], settings["sigma_v"]))  # prior Σ (Eq. 8)
+    phi, prior = ca.vertcat(mass, damp), ca.SX.sym("prior", 2)
+    sigma = ca.diag(prior)  # prior Σ (Eq. 8)
     q = ca.SX(np.diag(settings["q"]))
     rows = {
         "euler": 1 - ts * damp / mass,
@@ -85,50 +107,70 @@ def hessian_functions(settings: Mapping[str, Any]) -> dict[str, Any]:
         qs = q @ sig_plus
         costs = {"trace": ca.trace(qs), "logdet": ca.log(ca.det(qs))}
         for obj, cost in costs.items():
-            out[f"{name}/{obj}"] = ca.Function("h", [phi, sf], [ca.hessian(cost, phi)[0]])
+            hess = ca.hessian(cost, phi)[0]
+            out[f"{name}/{obj}"] = ca.Function("h", [phi, sf, prior], [hess])
     return out
 
 
-def hessian_min_eig(settings: Mapping[str, Any]) -> dict[str, np.ndarray]:
+def batch_min_eig(fn: Any, phi: np.ndarray, sf: np.ndarray, prior: np.ndarray) -> np.ndarray:
+    """``(λ_min, λ_min / max|λ|)`` of the Hessian ``fn`` at the rows of ``phi`` (N × 2),
+    ``sf`` (N) and ``prior`` (N × 2), as a 2 × N array (one mapped casadi call)."""
+    n = len(sf)
+    flat = np.array(fn.map(n)(phi.T, np.reshape(sf, (1, n)), prior.T))  # 2 × 2N
+    eigs = np.linalg.eigvalsh(flat.reshape(2, n, 2).transpose(1, 0, 2))
+    return np.stack([eigs[:, 0], eigs[:, 0] / np.abs(eigs).max(axis=1)])
+
+
+def sigma_f_grid(settings: Mapping[str, Any]) -> np.ndarray:
+    """The swept Σ_f: ``n_points`` log-spaced values over ``sigma_f_range`` [N²]."""
+    lo, hi = settings["sigma_f_range"]
+    return np.logspace(np.log10(lo), np.log10(hi), settings["n_points"])
+
+
+def hessian_min_eig(settings: Mapping[str, Any], fns: Mapping | None = None) -> dict:
     """``{"<integrator>/<objective>": min eigenvalue per Σ_f, "<...>/rel": the same divided
     by the largest |eigenvalue| (scale-free, in [-1, 1]), "sigma_f": Σ_f}``, at φ = (mass,
-    damping) of ``settings``."""
-    m0, d0 = settings["mass"], settings["damping"]
-    lo, hi = settings["sigma_f_range"]
-    sig_f = np.logspace(np.log10(lo), np.log10(hi), settings["n_points"])
+    damping) and the prior (sigma_x, sigma_v) of ``settings``."""
+    fns = fns or hessian_functions(settings)
+    sig_f = sigma_f_grid(settings)
+    n = len(sig_f)
+    phi = np.tile([settings["mass"], settings["damping"]], (n, 1))
+    prior = np.tile([settings["sigma_x"], settings["sigma_v"]], (n, 1))
     out: dict[str, np.ndarray] = {"sigma_f": sig_f}
-    for key, h in hessian_functions(settings).items():
-        eigs = np.array([np.linalg.eigvalsh(np.array(h([m0, d0], s))) for s in sig_f])
-        out[key] = eigs[:, 0]
-        out[f"{key}/rel"] = eigs[:, 0] / np.abs(eigs).max(axis=1)
+    for key, h in fns.items():
+        out[key], out[f"{key}/rel"] = batch_min_eig(h, phi, sig_f, prior)
     return out
 
 
-def indefinite_fraction(settings: Mapping[str, Any]) -> dict[str, float]:
+def indefinite_fraction(
+    settings: Mapping[str, Any], fns: Mapping | None = None, priors: np.ndarray | None = None
+) -> dict[str, float]:
     """Per curve, the fraction of the (M, D) grid (``mass_range`` × ``damping_range``,
     ``n_phi`` log-spaced values each) where the Hessian at Σ_f = ``typical_sigma_f`` has a
-    negative eigenvalue."""
+    negative eigenvalue; pooled over the rows [Σ_xx, Σ_vv] of ``priors`` (default: the
+    settings' one prior)."""
+    fns = fns or hessian_functions(settings)
     n = settings["n_phi"]
-    grid = [(m, d) for m in np.geomspace(*settings["mass_range"], n)
-            for d in np.geomspace(*settings["damping_range"], n)]  # fmt: skip
-    sf = settings["typical_sigma_f"]
-    return {
-        key: float(
-            np.mean([np.linalg.eigvalsh(np.array(h([m, d], sf)))[0] < 0.0 for m, d in grid])
-        )  # fmt: skip
-        for key, h in hessian_functions(settings).items()
-    }
+    if priors is None:
+        priors = np.array([[settings["sigma_x"], settings["sigma_v"]]])
+    md = [(m, d) for m in np.geomspace(*settings["mass_range"], n)
+          for d in np.geomspace(*settings["damping_range"], n)]  # fmt: skip
+    phi = np.array([p for _ in priors for p in md])
+    prior = np.repeat(priors, len(md), axis=0)
+    sf = np.full(len(phi), settings["typical_sigma_f"])
+    return {key: float(np.mean(batch_min_eig(h, phi, sf, prior)[0] < 0.0))
+            for key, h in fns.items()}  # fmt: skip
 
 
-def rank_corr(x: np.ndarray, y: np.ndarray) -> float:
-    """Spearman rank correlation of ``y`` with ``x`` (average ranks for ties); 0.0 when either
-    is constant (no trend)."""
-    from scipy.stats import rankdata
-
-    rx, ry = rankdata(x), rankdata(y)
-    if np.ptp(rx) == 0.0 or np.ptp(ry) == 0.0:
-        return 0.0
-    return float(np.corrcoef(rx, ry)[0, 1])
+def grid_curves(settings: Mapping[str, Any], fns: Mapping, points: np.ndarray) -> dict:
+    """``{curve: (λ_min, λ_min / max|λ|)}``, each an array (operating point × Σ_f), at the
+    rows [M, D, Σ_xx, Σ_vv] of ``points`` (one mapped call per curve)."""
+    sig_f = sigma_f_grid(settings)
+    p, n = len(points), len(sig_f)
+    phi = np.repeat(points[:, :2], n, axis=0)
+    prior = np.repeat(points[:, 2:], n, axis=0)
+    sf = np.tile(sig_f, p)
+    return {key: batch_min_eig(h, phi, sf, prior).reshape(2, p, n) for key, h in fns.items()}
 
 
 def curve_metrics(sigma_f: np.ndarray, eig: np.ndarray, rel: np.ndarray) -> dict[str, Any]:
@@ -174,26 +216,73 @@ def _settings(cfg: DictConfig) -> dict[str, Any]:
         raise ConfigError("convexity.q", f"must be the 2 diagonal weights of Q, got {q!r}")
     for i, v in enumerate(q):
         check_positive(f"convexity.q[{i}]", v)
+    s["grid"], s["tolerance"] = grid_settings(s)
     return s
 
 
+def grid_study(s: Mapping[str, Any], fns: Mapping) -> dict[str, Any]:
+    """The claims' grid (issue #37; :mod:`ccm.analyses.mpc_convexity_grid`): the operating
+    points, per point the curves' stats and the relations, and the fractions over the grid."""
+    single = (s["mass"], s["damping"], s["sigma_x"], s["sigma_v"])
+    points = operating_points(s["grid"], single)
+    sig_f = sigma_f_grid(s)
+    curves = grid_curves(s, fns, points)
+    per_point = [
+        {key: curve_stats(eig[i], rel[i], sig_f) for key, (eig, rel) in curves.items()}
+        for i in range(len(points))
+    ]
+    relations = [point_relations(p, s["tolerance"]) for p in per_point]
+    grid = s["grid"]
+    priors = np.array([(sx**2, sv**2) for sx in grid["pos_std"] for sv in grid["vel_std"]])
+    n_grid = int(np.prod([len(v) for v in grid.values()]))
+    return {"points": points, "sigma_f": sig_f, "per_point": per_point,
+            "relations": relations, "fractions": grid_fractions(relations),
+            "indefinite": indefinite_fraction(s, fns, priors), "n_grid": n_grid}  # fmt: skip
+
+
+def _points_table(study: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """One row per operating point for ``operating_points.json``: its values, relations and
+    per curve the convex threshold Σ_f (None: never convex in the sweep)."""
+    sig_f, n = study["sigma_f"], len(study["sigma_f"])
+    rows = []
+    for (m, d, vx, vv), stats, rel in zip(
+        study["points"], study["per_point"], study["relations"], strict=True
+    ):
+        above = {k: None if c["threshold"] >= n else float(sig_f[c["threshold"]])
+                 for k, c in stats.items()}  # fmt: skip
+        rows.append({"mass": float(m), "damping": float(d), "pos_std": float(np.sqrt(vx)),
+                     "vel_std": float(np.sqrt(vv)), "relations": rel,
+                     "convex_above_sigma_f": above})  # fmt: skip
+    return rows
+
+
 def run_convexity(cfg: DictConfig, compose: Callable, out_dir: Path) -> dict[str, Any]:
-    """Evaluate the curves, write ``figures/mpc_convexity.png`` and the summary: per curve,
-    the minimum eigenvalue at the smallest, middle and largest Σ_f and the metrics of the
-    module docstring; ``all_curves`` the metrics over the six curves."""
+    """Evaluate the curves at the single point and over the grid, write the figures,
+    ``operating_points.json`` and the summary: per curve the single-point metrics of the
+    module docstring plus its grid facts; ``all_curves`` the metrics over the six curves and
+    the claims' grid fractions."""
     s = _settings(cfg)
     t0 = time.perf_counter()
-    curves = hessian_min_eig(s)
-    indefinite = indefinite_fraction(s)
+    fns = hessian_functions(s)
+    curves = hessian_min_eig(s, fns)
+    indefinite = indefinite_fraction(s, fns)
+    study = grid_study(s, fns)
     conditions: dict[str, dict[str, Any]] = {}
     for key in indefinite:
         conditions[key] = curve_metrics(curves["sigma_f"], curves[key], curves[f"{key}/rel"])
         conditions[key]["indefinite_fraction_typical"] = indefinite[key]
-    conditions["all_curves"] = across_curves(conditions)
+        conditions[key]["indefinite_fraction_typical_grid"] = study["indefinite"][key]
+        conditions[key].update(saturation_fractions(study["per_point"], key))
+    conditions["all_curves"] = {**across_curves(conditions), **study["fractions"],
+                                "grid_n_points": len(study["points"])}  # fmt: skip
     if cfg.experiment.get("figures", True):
-        _figure(out_dir / "figures" / "mpc_convexity.png", curves)
+        figs = out_dir / "figures"
+        _figure(figs / "mpc_convexity.png", curves, s)
+        grid_figure(figs / "mpc_convexity_grid.png", study["points"], study["sigma_f"],
+                    study["per_point"], study["relations"], study["n_grid"])  # fmt: skip
     summary = {"experiment": str(cfg.experiment.name), "status": "ok", "seed": int(cfg.seed),
                "conditions": conditions, "trials": []}  # fmt: skip
+    write_json_atomic(out_dir / "operating_points.json", _points_table(study))
     write_json_atomic(out_dir / "run_info.json", {"wall_time_s": time.perf_counter() - t0})
     write_json_atomic(out_dir / "summary.json", summary)
     return summary
@@ -206,7 +295,7 @@ def _convex_above(sigma_f: np.ndarray, eig: np.ndarray) -> float | None:
     return float(sigma_f[bad[-1] + 1]) if bad[-1] + 1 < len(sigma_f) else None
 
 
-def _figure(path: Path, curves: Mapping[str, np.ndarray]) -> None:
+def _figure(path: Path, curves: Mapping[str, np.ndarray], s: Mapping[str, Any]) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -225,6 +314,8 @@ def _figure(path: Path, curves: Mapping[str, np.ndarray]) -> None:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(
-        "Convexity over (M, D) of the one-step covariance cost (seed B Fig. 4; > 0: convex)"
+        "Convexity over (M, D) of the one-step covariance cost (seed B Fig. 4; > 0: convex)\n"
+        f"single point: M {s['mass']:g} kg, D {s['damping']:g} N s/m, prior std "
+        f"{np.sqrt(s['sigma_x']) * 1e3:.3g} mm, {np.sqrt(s['sigma_v']) * 1e3:.3g} mm/s"
     )
     save_figure(fig, path)

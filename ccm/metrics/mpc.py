@@ -13,6 +13,8 @@ and for a rail (``mpc_rail``) ``rail_point``, ``rail_normal``, ``tool_half_exten
 Definitions (dt = the log's median step):
 
 * ``peak_force_N``: max over the trial of ‖true contact force‖ (seed B Fig. 6).
+* ``contact_made``: 1.0 if the tool touched anything during the trial, else 0.0 (a peak force
+  of 0 N from a trial that never reached the wall is no lower peak).
 * ``contact_losses``: after the first contact, the number of runs of ≥ ``contact_loss_min_s``
   with no contact that are followed by contact again or last to the end ("lost contact due to
   oscillation", seed B §6.1).
@@ -44,6 +46,9 @@ Definitions (dt = the log's median step):
 * ``mean_damping_<axis>_Nspm``, ``mean_mass_<axis>_kg`` and ``damping_ratio_varied_repeatable``:
   the mean rendered damping and mass per axis (seed B Fig. 9: across the polishing path) and
   the damping ratio varied / repeatable axis (seed B Fig. 8).
+* ``mean_sigma_f_<axis>_N2`` and ``max_sigma_f_<axis>_N2``: the mean and largest GP force
+  variance Σ^f that the MPC saw at its plans' last points ξ_{t+H} (signal ``sigma_f_<axis>_N2``,
+  where the chance constraint of Eq. 18 is imposed), over the trial's solves; None before any.
 * ``mean_damping_far_Nspm`` and ``far_from_human_frac`` (only when ``human_shoulder`` is set,
   seed B §6.3, Fig. 9c): the rendered damping, averaged over the axes and over the samples whose
   tool point (z = 0 in a planar task) lies at least ``far_from_human_m`` from the human's
@@ -61,6 +66,11 @@ Definitions (dt = the log's median step):
   over the steps with d ≤ ``near_rail_m`` and the ratio of those means (None if the tool never
   came that near); ``far_damping_<axis>_Nspm``: the mean over the steps with d >
   ``far_rail_m``; ``min_rail_distance_m``: the smallest d of the trial.
+  ``damping_rise_repeatable_over_varied``: (near / far damping along ``repeatable_axis``) over
+  (near / far along ``varied_axis``). The MPC's damping only ratchets up within a trial, so a
+  near-rail rise along one axis can be time, not place; both axes share that time, so this
+  ratio is above 1 only where the repeatable axis rises more than the varied one (seed B §6.2:
+  "increased substantially [in the repeatable DOF], while kept low in the DOF which varied").
 * ``belief_correct_final``: 1.0 if the final belief's largest entry is the human's goal;
   ``time_to_belief_s``: the first time the belief in the true goal reaches ``belief_level``
   (None if never; seed B Fig. 11).
@@ -174,6 +184,17 @@ def rail_distance(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, 
     return (pos - point) @ normal - half
 
 
+def _sigma_f(x: np.ndarray | None, axis: str) -> dict[str, float | None]:
+    """``mean_sigma_f_<axis>_N2`` and ``max_sigma_f_<axis>_N2`` (module docstring)."""
+    if x is None:
+        return {}
+    seen = x[np.isfinite(x)]
+    return {
+        f"mean_sigma_f_{axis}_N2": float(np.mean(seen)) if seen.size else None,
+        f"max_sigma_f_{axis}_N2": float(np.max(seen)) if seen.size else None,
+    }
+
+
 def _mean_over(x: np.ndarray | None, mask: np.ndarray) -> float | None:
     return float(np.mean(x[mask])) if x is not None and mask.any() else None
 
@@ -202,6 +223,9 @@ def rail_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, A
     va, ra = params.get("varied_axis"), params.get("repeatable_axis")
     nv, nr = out.get(f"near_damping_{va}_Nspm"), out.get(f"near_damping_{ra}_Nspm")
     out["near_damping_ratio_varied_repeatable"] = nv / nr if nv is not None and nr else None
+    fv, fr = out.get(f"far_damping_{va}_Nspm"), out.get(f"far_damping_{ra}_Nspm")
+    known = None not in (nv, nr, fv, fr) and fv and fr and nv
+    out["damping_rise_repeatable_over_varied"] = (nr / fr) / (nv / fv) if known else None
     return out
 
 
@@ -212,7 +236,10 @@ def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str,
     ax = AXES[:dim]
     fc = np.linalg.norm(np.column_stack([log[f"contact_force_{a}"] for a in ax]), axis=1)
     touching = log["n_contacts"] > 0
-    out: dict[str, float | None] = {"peak_force_N": float(fc.max()) if fc.size else 0.0}
+    out: dict[str, float | None] = {
+        "peak_force_N": float(fc.max()) if fc.size else 0.0,
+        "contact_made": 1.0 if touching.any() else 0.0,
+    }
     if touching.any():
         first = int(np.argmax(touching))
         c = touching[first:].astype(int)
@@ -242,6 +269,7 @@ def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str,
             out[f"mean_damping_{a}_Nspm"] = float(np.mean(d))
         if f"mass_{a}_kg" in log:
             out[f"mean_mass_{a}_kg"] = float(np.mean(log[f"mass_{a}_kg"]))
+        out.update(_sigma_f(log.get(f"sigma_f_{a}_N2"), a))
     if params.get("human_shoulder") is not None:
         out.update(_far_from_human(log, ax, damp, params))
     if rep.get("disturbance_alpha") is not None:

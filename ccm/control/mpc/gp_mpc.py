@@ -42,7 +42,9 @@ from ccm.core.types import Command, Observation, TargetSample
 AXES = ("x", "y", "z")
 
 #: the per-axis signal keys, in column order
-_AXIS_SIGNALS = tuple((f"mass_{a}_kg", f"damping_{a}_Nspm", f"f_ref_{a}_N") for a in AXES)
+_AXIS_SIGNALS = tuple(
+    (f"mass_{a}_kg", f"damping_{a}_Nspm", f"f_ref_{a}_N", f"sigma_f_{a}_N2") for a in AXES
+)
 
 
 class GPMPC(Controller):
@@ -183,6 +185,7 @@ class GPMPC(Controller):
             if np.any(v <= lo):
                 raise ConfigError(f"{self.key}.init_{name}", f"must be > 0, got {v.tolist()}")
         self.belief = np.full(self.n_modes, 1.0 / self.n_modes)
+        self.sigma_f = np.full(dim, np.nan)  # Σ^f at ξ_{t+H} of the last solve (none yet)
         self._x_ref: np.ndarray | None = None
         self._v_ref = np.zeros(dim)
         self._theta0 = 0.0
@@ -291,20 +294,36 @@ class GPMPC(Controller):
         self._cpu.append(time.process_time() - c0)
         self._iterations.append(sol.iterations)
         self.solves += 1
+        self.sigma_f = self._terminal_variance(sol.predicted)
         if sol.success:
             self.f_ref, self.mass, self.damping = sol.f_ref, sol.mass, sol.damping
         else:  # keep the last feasible command (issue #7 acceptance) and count the event
             self.infeasible += 1
             self.infeasible_total += 1
 
+    def _terminal_variance(self, predicted: np.ndarray) -> np.ndarray:
+        """Σ^f that the solve saw at its plan's last point ξ_{t+H} (where Eq. 18 is imposed,
+        seed B §4.3.1), per axis: each mode's GP variance there, as the problem scales it
+        (``gp_var_scale``), averaged with the belief as weight."""
+        scale = self._problem.settings.gp_var_scale
+        var = [
+            g.predict(predicted[m, -1, None, : self.dim])[1][0] for m, g in enumerate(self.models)
+        ]
+        return scale * (self.belief @ np.asarray(var))
+
     # ---------------------------------------------------------------- reporting
     def signals(self) -> dict[str, float]:
         """``mass_<axis>_kg``, ``damping_<axis>_Nspm``, ``f_ref_<axis>_N`` per axis (the MPC's
-        last accepted output), ``belief_<m>`` per mode, ``mpc_infeasible``, ``demonstration``."""
+        last accepted output), ``sigma_f_<axis>_N2`` (the GP variance Σ^f that the last solve
+        saw at ξ_{t+H}; NaN before the first solve), ``belief_<m>`` per mode,
+        ``mpc_infeasible``, ``demonstration``."""
         out: dict[str, float] = {}
-        values = zip(self.mass.tolist(), self.damping.tolist(), self.f_ref.tolist(), strict=True)
-        for (k_m, k_d, k_f), (m, d, f) in zip(_AXIS_SIGNALS, values, strict=False):
-            out[k_m], out[k_d], out[k_f] = m, d, f
+        values = zip(
+            self.mass.tolist(), self.damping.tolist(), self.f_ref.tolist(),
+            self.sigma_f.tolist(), strict=True,
+        )  # fmt: skip
+        for (k_m, k_d, k_f, k_s), (m, d, f, sf) in zip(_AXIS_SIGNALS, values, strict=False):
+            out[k_m], out[k_d], out[k_f], out[k_s] = m, d, f, sf
         for k, b in zip(self._belief_signals, self.belief.tolist(), strict=True):
             out[k] = b
         out["mpc_infeasible"] = float(getattr(self, "infeasible", 0))

@@ -14,7 +14,12 @@ semi-implicit integrator (§5.2: convex in (M, D) from a small Σ_f on, ``ccm ru
 experiment=mpc_convexity``), summed over modes with the belief b[n] as weight (Eq. 13).
 Optional terms (each off unless configured): the force chance constraint (Eq. 18), the
 well-damped constraint (Eq. 19-20), the disturbance-rejection cost (Eq. 16-17) and the human
-joint-torque cost (Eq. 11, 15), whose models live in :mod:`ccm.control.mpc.terms`.
+joint-torque cost (Eq. 11, 15), whose models live in :mod:`ccm.control.mpc.terms`. With
+``force_cost: human_match`` the force term μ^fᵀ Q_f μ^f becomes seed B §4.2.1's
+(μ^f_τ + f^r_τ)ᵀ Q_H (μ^f_τ + f^r_τ) "to match the human demonstrations": f^r is pulled to
+−μ^f, so the robot renders the demonstrated force itself; summed over the modes with the
+belief as weight (Eq. 13), it pulls f^r to −Σ_n b[n] μ^{f,n}, which ties the plan's force to
+the believed goal.
 
 IPOPT solves it, warm-started from the previous primal and dual solution
 (``warm_start_init_point``). A solve that IPOPT does not report as successful is *not*
@@ -85,6 +90,8 @@ class _ModeTerms:
     chance: tuple[float, float] | None
     wd: tuple[float, float | None] | None
     jt: Callable[[ca.MX, ca.MX], ca.MX] | None
+    human_match: bool  # §4.2.1: (μ^f + f^r)ᵀ Q_H (μ^f + f^r) instead of μ^fᵀ Q_f μ^f
+    jt_measured: bool  # §4.2.2: f_H = D ẋ with ẋ the measured velocity (a parameter)
 
 
 def _ipopt_options(extra: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -122,6 +129,8 @@ class GPMPCProblem:
         f_ref_max: bound |f^r_i| [N]; f_ref_rate_max: |f^r_{τ+1} − f^r_τ| [N] per step,
             also from the previous solve's f^r.
         f_ref_target: the target of the f^r-target cost [N] (n,).
+        force_cost: ``"mean"`` (μ^fᵀ Q_f μ^f, Eq. 14) or ``"human_match"`` ((μ^f + f^r)ᵀ Q_H
+            (μ^f + f^r), seed B §4.2.1), both weighted by ``weights.force``.
         weights: cost weights (:class:`ccm.control.mpc.settings.Weights`, or a mapping).
         continuity_slack: ϱ of Eq. 13.
         gp_var_scale: factor on the GP variance in the dynamics (1 = the paper; seed B's
@@ -131,7 +140,10 @@ class GPMPCProblem:
             (Eq. 19-20).
         disturbance: {alpha, omega_p} of F^d(s) = α s / (s + ω_p) (Eq. 16-17).
         joint_torque: {shoulder [m] (3,), l1, l2 [m], z [m]: the TCP height used to pad a
-            2-D pose} (Eq. 11, 15; f_H = D ẋ, seed B §4.2.2).
+            2-D pose, velocity: "measured" | "predicted"} (Eq. 11, 15; f_H = D ẋ, seed B
+            §4.2.2, where ẋ "provides a weighting according to the direction of the expected
+            forces": ``measured`` takes ξ_t's velocity, a parameter, so the cost acts on D;
+            ``predicted`` the plan's own velocity, which the optimiser can lower instead).
         ipopt: extra IPOPT options (e.g. max_iter, tol, hessian_approximation).
         codegen: None (default): casadi evaluates the NLP functions. A string: C compiler
             flags (e.g. "-O1"); the functions are generated as C, compiled once per GP fit
@@ -186,6 +198,8 @@ class GPMPCProblem:
             a_b=system_matrices(mass, damping, self.ts), mass=mass, damping=damping, fr=fr,
             slack=st.continuity_slack, var_scale=st.gp_var_scale, chance=st.chance,
             wd=st.well_damped, jt=self._joint_torque() if self.w.joint_torque > 0.0 else None,
+            human_match=st.force_cost == "human_match",
+            jt_measured=st.joint_torque is not None and st.joint_torque.velocity == "measured",
         )  # fmt: skip
         for m, gp in enumerate(gp_modes):
             cost += belief[m] * self._mode_cost(gp, [xi0, *mus[m]], terms, g)
@@ -253,9 +267,14 @@ class GPMPCProblem:
             mode_cost += w.vel * ca.sumsqr(mu_next[n:])
             mode_cost += w.pos_var * ca.sum1(diag_s[:n])
             mode_cost += w.vel_var * ca.sum1(diag_s[n:])
-            mode_cost += w.force * ca.sumsqr(fm_n) + w.force_var * ca.sum1(fv_n)
+            if t.human_match:  # §4.2.1: f^r_τ matches the demonstrated force at its own step
+                mode_cost += w.force * ca.sumsqr(f_mu[k] + t.fr[k])
+            else:
+                mode_cost += w.force * ca.sumsqr(fm_n)
+            mode_cost += w.force_var * ca.sum1(fv_n)
             if t.jt is not None:  # Eq. 15 with f_H = D ẋ (seed B §4.2.2)
-                mode_cost += w.joint_torque * t.jt(poses[k + 1], t.damping * mu_next[n:])
+                xdot = states[0][n:] if t.jt_measured else mu_next[n:]
+                mode_cost += w.joint_torque * t.jt(poses[k + 1], t.damping * xdot)
             if t.wd is not None:  # Eq. 19-20 on ξ_{t+1..t+H}; D² ≥ 4ζ²M K_e (D > 0)
                 zeta, fixed = t.wd
                 k_e = fixed if fixed is not None else -ca.diag(grad_f(poses[k + 1]))

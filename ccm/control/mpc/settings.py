@@ -20,6 +20,7 @@ from ccm.control.mpc.terms import chance_quantile
 from ccm.core.errors import (
     ConfigError,
     check_bounds,
+    check_choice,
     check_int_positive,
     check_keys,
     check_nonneg,
@@ -34,7 +35,8 @@ class Weights:
     Attributes:
         vel: Q_μ on velocity ("just a small penalty on velocity", seed B §4.2.1).
         pos_var, vel_var: Q_Σ on the position and velocity variances (trace form, §5.2).
-        force: Q_f on the GP mean force μ^f.
+        force: Q_f on the GP mean force μ^f; with ``force_cost: human_match`` the Q_H of
+            seed B §4.2.1's (μ^f + f^r)ᵀ Q_H (μ^f + f^r).
         force_var: Q_Σ,f on the GP variance Σ^f.
         f_ref: Q_u on f^r.
         delta_mass, delta_damping: Q_u on ΔM, ΔD.
@@ -58,13 +60,16 @@ class Weights:
 
 @dataclass(frozen=True)
 class JointTorque:
-    """The human arm of Eq. 11: shoulder position and link lengths [m], and the TCP height z
-    [m] that pads a 2-D pose."""
+    """The human arm of Eq. 11: shoulder position and link lengths [m], the TCP height z [m]
+    that pads a 2-D pose, and which ẋ weights f_H = D ẋ (seed B §4.2.2): ``measured`` (the
+    state's velocity at the solve, a parameter, so D is the lever) or ``predicted`` (the plan's
+    own velocity, a decision variable)."""
 
     shoulder: np.ndarray
     l1: float
     l2: float
     z: float
+    velocity: str = "measured"
 
 
 @dataclass(frozen=True)
@@ -85,6 +90,7 @@ class MPCSettings:
     f_ref_max: float = 30.0
     f_ref_rate_max: float = 10.0
     f_ref_target: Any = 0.0
+    force_cost: str = "mean"
     weights: Weights = field(default_factory=Weights)
     continuity_slack: float = 0.0
     gp_var_scale: float = 1.0
@@ -121,6 +127,9 @@ class MPCSettings:
             f_ref_max=check_positive(f"{key}.f_ref_max", get("f_ref_max", 30.0)),
             f_ref_rate_max=check_positive(f"{key}.f_ref_rate_max", get("f_ref_rate_max", 10.0)),
             f_ref_target=get("f_ref_target", 0.0),
+            force_cost=check_choice(
+                f"{key}.force_cost", get("force_cost", "mean"), ("mean", "human_match")
+            ),
             weights=weights,
             continuity_slack=check_nonneg(f"{key}.continuity_slack", get("continuity_slack", 0.0)),
             gp_var_scale=check_positive(f"{key}.gp_var_scale", get("gp_var_scale", 1.0)),
@@ -166,7 +175,8 @@ def _chance(chance: Mapping[str, Any] | None, k: str) -> tuple[float, float] | N
         return None
     only(k, chance, ("f_max", "epsilon", "quantile"))
     f_max = check_positive(f"{k}.f_max", chance.get("f_max", 12.0))
-    q = chance_quantile(chance.get("epsilon", 0.5), form=chance.get("quantile", "normal"), key=k)
+    form = chance.get("quantile", "paper_erfinv")  # Eq. 18 as printed (seed B); "normal" = Φ⁻¹
+    q = chance_quantile(chance.get("epsilon", 0.5), form=form, key=k)
     return f_max, float(q)
 
 
@@ -203,10 +213,13 @@ def _joint_torque(jt: Mapping[str, Any] | None, w: Weights, k: str) -> JointTorq
     if not jt and w.joint_torque <= 0.0:
         return None
     jt = dict(jt or {})
-    only(k, jt, ("shoulder", "l1", "l2", "z"))
+    only(k, jt, ("shoulder", "l1", "l2", "z", "velocity"))
     return JointTorque(
         shoulder=vector(f"{k}.shoulder", jt.get("shoulder", (0.0, -0.4, 0.3)), 3),
         l1=check_positive(f"{k}.l1", jt.get("l1", 0.30)),
         l2=check_positive(f"{k}.l2", jt.get("l2", 0.35)),
         z=float(jt.get("z", 0.0)),
+        velocity=check_choice(
+            f"{k}.velocity", jt.get("velocity", "measured"), ("measured", "predicted")
+        ),
     )

@@ -6,11 +6,16 @@ the mean w.r.t. pose are available in numpy and as casadi functions for an optim
 
 Deviations from / readings of the printed formulas (documented choices):
 
-* Eq. 1 writes the kernel amplitude as ``σ_n²`` and calls it the noise variance. We use the
-  standard form ``k(x, x') = σ_f² exp(-½ (x-x')ᵀ diag(l⁻²) (x-x'))`` with a *signal* variance
-  ``σ_f²`` and a separate *noise* variance ``σ_n²`` added to the training covariance
-  (``K + σ_n² I``); both are hyperparameters. Eq. 2's variance is then ``σ_f² - k*ᵀ(K+σ_n²I)⁻¹k*``,
-  the variance of the latent f (no observation noise).
+* Eq. 1 writes the kernel amplitude as ``σ_n²`` and calls it the noise variance, and Eq. 2
+  adds the same ``σ_n²`` to the training covariance: one hyperparameter is both the kernel
+  amplitude and the noise. ``variance="tied"`` is that model as printed:
+  ``k(x, x') = σ_n² exp(-½ (x-x')ᵀ diag(l⁻²) (x-x'))``, ``K + σ_n² I`` and
+  ``Σ^f = σ_n² - k*ᵀ(K+σ_n²I)⁻¹k*``, which reverts to ``σ_n²`` far from the data (seed B
+  §4.3.1: "the GP will revert to a baseline variance given by hyperparameter σ_n²") and stays
+  of the order of the data's scatter near it. ``variance="separate"`` is the textbook form
+  with a *signal* variance ``σ_f²`` and a separate *noise* variance ``σ_n²``; its ``Σ^f`` is
+  the latent variance ``σ_f² - k*ᵀ(K+σ_n²I)⁻¹k*``, which the fitted noise can make tiny where
+  the data scatter (the scatter goes to ``σ_n²``, which ``Σ^f`` does not contain).
 * Eq. 3 as printed (``c1`` if ``x <= c3``, else ``c1 + c2 x``) is discontinuous at ``c3``.
   ``hinge_form="continuous"`` (default) uses ``m = c1 + c2 max(0, x - c3)``;
   ``hinge_form="paper"`` uses the printed formula. In the paper form the NLL is piecewise
@@ -25,11 +30,11 @@ Deviations from / readings of the printed formulas (documented choices):
   are right derivatives (slope ``c2``) in numpy; casadi's ``fmax``/``if_else`` derivative at
   exactly the kink may differ.
 
-Hyperparameters (log length scales, log σ_f², log σ_n² and the hinge c1, c2, c3) are fitted
-jointly by minimising the negative log-likelihood with scipy L-BFGS-B and analytic gradients;
-c3 is bounded to the data range of ``x[:, hinge_input]``. Casadi functions use ``MX`` with the
-training data, ``alpha`` and ``L⁻¹`` embedded as ``DM`` constants (dense products stay single
-nodes, which keeps graphs small for hundreds of points).
+Hyperparameters (log length scales, log σ_f², log σ_n², one variance when tied, and the hinge
+c1, c2, c3) are fitted jointly by minimising the negative log-likelihood with scipy L-BFGS-B
+and analytic gradients; c3 is bounded to the data range of ``x[:, hinge_input]``. Casadi
+functions use ``MX`` with the training data, ``alpha`` and ``L⁻¹`` embedded as ``DM``
+constants (dense products stay single nodes, which keeps graphs small for hundreds of points).
 """
 
 from __future__ import annotations
@@ -77,8 +82,10 @@ class GPForceModel:
         hinge_width: softplus width w [m] of the smooth form.
         hinge_input: index of the pose element the hinge acts on.
         length_scale_bounds: bounds on each ARD length scale (Eq. 1).
-        signal_var_bounds: bounds on σ_f².
-        noise_var_bounds: bounds on σ_n².
+        signal_var_bounds: bounds on σ_f² (unused when tied).
+        noise_var_bounds: bounds on σ_n² (the one variance when tied).
+        variance: ``"separate"`` (σ_f² and σ_n²) or ``"tied"`` (Eq. 1-2 as printed: one
+            σ_n² is the kernel amplitude and the noise; module docstring).
         n_restarts: extra seeded random starts of the NLL optimiser.
         seed: seed of the random starts.
         key: configuration-key prefix for errors.
@@ -94,6 +101,7 @@ class GPForceModel:
         length_scale_bounds: Sequence[float] = (1e-3, 1e2),
         signal_var_bounds: Sequence[float] = (1e-4, 1e4),
         noise_var_bounds: Sequence[float] = (1e-6, 1e2),
+        variance: str = "separate",
         n_restarts: int = 2,
         seed: int = 0,
         key: str = "gp",
@@ -108,6 +116,7 @@ class GPForceModel:
         self.length_scale_bounds = check_bounds(f"{key}.length_scale_bounds", length_scale_bounds)
         self.signal_var_bounds = check_bounds(f"{key}.signal_var_bounds", signal_var_bounds)
         self.noise_var_bounds = check_bounds(f"{key}.noise_var_bounds", noise_var_bounds)
+        self.variance = check_choice(f"{key}.variance", variance, ("separate", "tied"))
         self.n_restarts = check_int_nonneg(f"{key}.n_restarts", n_restarts)
         self.seed = check_int_nonneg(f"{key}.seed", seed)
         self.hinge_: tuple[float, float, float] | None = None
@@ -142,6 +151,23 @@ class GPForceModel:
             fs, xr, xmin = self._scales
             hinge = (fs * p[d + 2], fs / xr * p[d + 3], xmin + xr * p[d + 4])
         return ls, sf2, sn2, hinge
+
+    def _full(self, q: np.ndarray) -> np.ndarray:
+        """The optimiser's vector as the full [log l, log σ_f², log σ_n², hinge] vector: when
+        tied, the one variance fills both slots (Eq. 1-2 as printed)."""
+        if self.variance == "separate":
+            return q
+        d = self._d
+        return np.concatenate([q[: d + 1], q[d : d + 1], q[d + 1 :]])
+
+    def _objective(self, q: np.ndarray) -> tuple[float, np.ndarray]:
+        """NLL and gradient over the optimiser's vector (tied: the two variance slots' gradients
+        add, by the chain rule)."""
+        nll, g = self._nll_and_grad(self._full(q))
+        if self.variance == "separate":
+            return nll, g
+        d = self._d
+        return nll, np.concatenate([g[:d], [g[d] + g[d + 1]], g[d + 2 :]])
 
     def _nll_and_grad(self, p: np.ndarray) -> tuple[float, np.ndarray]:
         d, M = self._d, self._X.shape[0]
@@ -218,7 +244,9 @@ class GPForceModel:
         self._sqd = (X[:, None, :] - X[None, :, :]).transpose(2, 0, 1) ** 2
         rng = np.random.default_rng(self.seed)
         lb = [np.log(self.length_scale_bounds)] * d
-        lb += [np.log(self.signal_var_bounds), np.log(self.noise_var_bounds)]
+        if self.variance == "separate":
+            lb.append(np.log(self.signal_var_bounds))
+        lb.append(np.log(self.noise_var_bounds))
         x_std = np.where(X.std(axis=0) > 0, X.std(axis=0), 1.0)
         xh = X[:, min(self.hinge_input, d - 1)]
         xr = float(xh.max() - xh.min()) or 1.0
@@ -228,20 +256,22 @@ class GPForceModel:
         grid = np.linspace(0.0, 1.0, 21)
         starts = [self._start(x_std, xh, grid, None, rng)]
         starts += [self._start(x_std, xh, grid, rng.uniform(), rng) for _ in range(self.n_restarts)]
+        if self.variance == "tied":  # one variance: the start's residual variance (index d)
+            starts = [np.delete(s, d + 1) for s in starts]
         lo, hi = (
             np.array([np.inf * (2 * i - 1) if b[i] is None else b[i] for b in lb]) for i in (0, 1)
         )
         starts = [np.clip(s, lo, hi) for s in starts]
-        self.initial_params_ = self._as_dict(starts[0])
+        self.initial_params_ = self._as_dict(self._full(starts[0]))
         best = None
         for s in starts:
             res = scipy.optimize.minimize(
-                self._nll_and_grad, s, jac=True, method="L-BFGS-B", bounds=lb
+                self._objective, s, jac=True, method="L-BFGS-B", bounds=lb
             )
-            cand = min((res.fun, res.x), (self._nll_and_grad(s)[0], s), key=lambda c: c[0])
+            cand = min((res.fun, res.x), (self._objective(s)[0], s), key=lambda c: c[0])
             if best is None or cand[0] < best[0]:
                 best = cand
-        self.nll_, p = float(best[0]), best[1]
+        self.nll_, p = float(best[0]), self._full(best[1])
         pr = self._as_dict(p)
         self.length_scales_, self.signal_var_ = pr["length_scales"], pr["signal_var"]
         self.noise_var_, self.hinge_ = pr["noise_var"], pr["hinge"]
