@@ -49,12 +49,19 @@ def _forward_model_horizon() -> Analysis:
     return run_study
 
 
+def _mpc_table2() -> Analysis:
+    from ccm.analyses.mpc_table2 import run_table2  # seed B Table 2 by replay (issue #37)
+
+    return run_table2
+
+
 #: experiment.kind -> the analysis that kind names (the kinds other than ``trials``)
 ANALYSES: dict[str, Callable[[], Analysis]] = {
     "h3": _h3,
     "mpc_convexity": _mpc_convexity,
     "gp_contact_models": _gp_contact_models,
     "forward_model_horizon": _forward_model_horizon,
+    "mpc_table2": _mpc_table2,
 }
 assert set(ANALYSES) == set(ANALYSIS_KINDS), (
     "ccm.experiment.components.ANALYSIS_KINDS names these kinds"

@@ -43,7 +43,9 @@ ComposeFn = Callable[[Sequence[str]], DictConfig]
 
 #: the experiment.kind values that name an analysis (:data:`ccm.analyses.dispatch.ANALYSES`),
 #: not the condition × phase × trial loop this module runs
-ANALYSIS_KINDS = ("h3", "mpc_convexity", "gp_contact_models", "forward_model_horizon")
+ANALYSIS_KINDS = (
+    "h3", "mpc_convexity", "gp_contact_models", "forward_model_horizon", "mpc_table2",
+)  # fmt: skip
 
 
 def check_experiment(cfg: DictConfig) -> dict[str, Any]:

@@ -35,7 +35,7 @@ PAPER_EXPERIMENTS = (
     "h3_long_horizon", "h1_adaptive_control", "mpc_contact", "mpc_contact_latency",
     "h4_contact_learning", "h4_impactless", "h2_changing_surface", "mpc_rail", "h4_collisions",
     "gp_contact_models",
-    "contact_head_to_head", "mpc_polishing", "mpc_goal_inference", "h1_forward_model",
+    "contact_head_to_head", "mpc_polishing", "mpc_table2", "mpc_goal_inference", "h1_forward_model",
     "mpc_convexity", "h4_impact_design",
 )  # fmt: skip
 
