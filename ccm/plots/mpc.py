@@ -1,7 +1,9 @@
 """Figures of the seed B (GP-MPC) experiments, from the last trial of each condition.
 
 * ``mpc_force.png``: ‖true contact force‖ over time (seed B Fig. 6), one panel per condition
-  group (the name up to its first ``_``, e.g. ``soft`` / ``variance`` / ``stiff``).
+  group (the name up to its first ``_``, e.g. ``soft`` / ``variance`` / ``stiff``), each
+  condition in its own line style (conditions that coincide stay visible), with the chance
+  constraint's bound f̄ (Eq. 18) as a dashed line where a condition of the panel has one.
 * ``mpc_impedance.png``: the rendered damping D and mass M per axis (seed B Fig. 8, 9d).
 * ``mpc_belief.png``: the belief of each mode, with the human's true goal (seed B Fig. 11b);
   only when a condition has several modes.
@@ -24,10 +26,17 @@ def _groups(names: list[str]) -> dict[str, list[str]]:
     return out
 
 
+_STYLES = ("-", "--", ":", "-.")
+
+
 def write_mpc_figures(
-    last: Mapping[str, Mapping[str, np.ndarray]], dim: int, save: Callable[[Any, str], None]
+    last: Mapping[str, Mapping[str, np.ndarray]],
+    dim: int,
+    save: Callable[[Any, str], None],
+    force_bounds: Mapping[str, float] | None = None,
 ) -> None:
-    """Write the figures above for the conditions whose log has GP-MPC signals."""
+    """Write the figures above for the conditions whose log has GP-MPC signals
+    (``force_bounds``: condition -> the chance constraint's f̄ [N], where it has one)."""
     import matplotlib.pyplot as plt
 
     logs = {n: lg for n, lg in last.items() if "mpc_infeasible" in lg}
@@ -35,13 +44,16 @@ def write_mpc_figures(
         return
     groups = _groups(list(logs))
     fig, axs = plt.subplots(len(groups), 1, figsize=(8, 2.6 * len(groups)), squeeze=False)
+    bounds = force_bounds or {}
     for ax, (group, names) in zip(axs[:, 0], groups.items(), strict=True):
-        for name in names:
+        for k, name in enumerate(names):
             lg = logs[name]
             fc = np.linalg.norm(
                 np.column_stack([lg[f"contact_force_{a}"] for a in AXES[:dim]]), axis=1
             )
-            ax.plot(lg["t"], fc, lw=1.0, label=name)
+            ax.plot(lg["t"], fc, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
+        for f_max in sorted({bounds[n] for n in names if n in bounds}):
+            ax.axhline(f_max, color="k", ls="--", lw=0.8, label=f"f̄ = {f_max:g} N (Eq. 18)")
         ax.set_title(group, fontsize=9)
         ax.set_ylabel("contact force [N]")
         ax.legend(fontsize=7)

@@ -70,7 +70,7 @@ def write_figures(
         task = next(iter(components.values())).task
         write_patch_figure(logs, task.contacts, dim, lowpass_hz, save)
     # seed B GP-MPC: contact force, impedance, belief (seed B Figs 6, 8, 11)
-    write_mpc_figures(last, dim, save)
+    write_mpc_figures(last, dim, save, _chance_bounds(components))
     # seed B rail task: damping against the distance to the rail (seed B Fig. 8)
     write_rail_figure(fig_dir.parent, trials, dim, metrics_cfg, save)
     return written
@@ -238,3 +238,13 @@ def _force_prediction_figure(last: Logs, dim: int, save: Save) -> None:
     axs[-1, 0].set_xlabel("time [s]")
     fig.suptitle("Force predicted one model step (horizon_s) earlier (last trial)")
     save(fig, "force_prediction.png")
+
+
+def _chance_bounds(components: Mapping[str, Any]) -> dict[str, float]:
+    """Condition -> the f̄ [N] of its GP-MPC chance constraint (Eq. 18), where it has one."""
+    out = {}
+    for name, comp in components.items():
+        chance = (getattr(comp.controller, "mpc_cfg", None) or {}).get("chance") or {}
+        if "f_max" in chance:
+            out[name] = float(chance["f_max"])
+    return out
