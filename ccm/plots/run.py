@@ -244,7 +244,8 @@ def _chance_bounds(components: Mapping[str, Any]) -> dict[str, float]:
     """Condition -> the f̄ [N] of its GP-MPC chance constraint (Eq. 18), where it has one."""
     out = {}
     for name, comp in components.items():
-        chance = (getattr(comp.controller, "mpc_cfg", None) or {}).get("chance") or {}
+        ctrl = getattr(comp, "controller", None)  # a figure-only caller may pass none
+        chance = (getattr(ctrl, "mpc_cfg", None) or {}).get("chance") or {}
         if "f_max" in chance:
             out[name] = float(chance["f_max"])
     return out
