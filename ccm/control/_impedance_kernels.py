@@ -44,3 +44,19 @@ def impedance_kernel(
         e = (target_pos[i] - pos[i]) * _gain(kp, i) + (target_vel[i] - vel[i]) * _gain(kd, i)
         u[i] = e + mass_kg * target_acc[i] if inertia_feedforward else e
     return u
+
+
+@njit(cache=True)
+def critical_damping_matrix(lam: np.ndarray, kp: np.ndarray, zeta: float) -> np.ndarray:
+    """K_d = ζ (Λ^½ K^½ + K^½ Λ^½) for an inertia Λ (n, n, symmetric positive definite) and
+    per-axis stiffness K = diag(kp): the critical rule of :func:`ccm.control.loop.
+    damping_from_rule` for a matrix inertia (the factorization design)."""
+    m, v = np.linalg.eigh(lam)
+    root = (v * np.sqrt(np.maximum(m, 0.0))) @ v.T  # Λ^½
+    k_half = np.sqrt(kp)
+    d = np.empty_like(root)
+    n = kp.shape[0]
+    for i in range(n):
+        for j in range(n):
+            d[i, j] = zeta * (root[i, j] * k_half[j] + k_half[i] * root[i, j])
+    return d

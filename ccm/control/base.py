@@ -17,7 +17,8 @@ class Controller(ABC):
     """Maps ``(Observation, TargetSample) -> Command``.
 
     A controller never sees a simulator handle or ground truth: only the ``Observation``
-    (pose, twist, measured wrench, time) and the target pattern sample. Controllers that
+    (pose, twist, measured wrench, time; on the arm its model's inertia Λ(q)) and the target
+    pattern sample. Controllers that
     learn across trials override :meth:`end_trial`, and :meth:`state_dict` /
     :meth:`load_state_dict` so that what they learned can be saved at the end of a run
     and start a later run (``ccm run ... init_from=<run dir>``; JSON, no pickle).

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ccm.control.base import Controller
-from ccm.control.loop import HybridLoop
+from ccm.control.loop import HybridLoop, mean_gain
 from ccm.core.errors import ConfigError, check_positive
 from ccm.core.types import Command, Observation, TargetSample
 
@@ -16,8 +16,9 @@ from ccm.core.types import Command, Observation, TargetSample
 class FixedImpedance(Controller):
     """Task-space hybrid force-motion impedance law of Eq. 1 (seed A) with constant gains.
 
-    u = P_m [K_p Δx + K_d Δẋ + m ẍ_d] + u_fc with constant K_p, K_d from the loop's damping
-    rule, and u_ff = 0 (AVIC adds it). The shared terms (force loop u_fc, m ẍ_d, orientation
+    u = P_m [K_p Δx + K_d Δẋ + Λ ẍ_d] + u_fc with constant K_p, K_d from the loop's damping
+    rule (for the arm's Λ(q) when the loop uses it: then K_d follows Λ every step), and
+    u_ff = 0 (AVIC adds it). The shared terms (force loop u_fc, m ẍ_d, orientation
     hold, damping rule) are the :class:`ccm.control.loop.HybridLoop` it holds.
 
     Args:
@@ -57,7 +58,12 @@ class FixedImpedance(Controller):
 
     def step(self, obs: Observation, target: TargetSample) -> Command:
         """Eq. 1 (seed A) with constant K_p, K_d and u_ff = 0."""
-        u, u_force = self.loop.motion_force(obs, target, self._kp, self._kd)
+        kd = self._kd
+        inertia = self.loop.inertia_of(obs)
+        if isinstance(inertia, np.ndarray):  # K_d for this step's Λ(q)
+            kd = self.loop.damping_for(self._kp, inertia)
+            self._gains["damping_Nspm"] = mean_gain(kd)
+        u, u_force = self.loop.motion_force(obs, target, self._kp, kd)
         if u_force is not self.loop.zero:
             u += u_force
         return Command(force=u, torque=self.loop.rotation_torque(obs, target))

@@ -3,9 +3,15 @@
 u = P_m [K_p Δx + K_d Δẋ + m ẍ_d] + u_fc + orientation hold, with P_m = I − d dᵀ the motion
 subspace and u_fc = d [F_d + k_fp e_F + k_fi ∫e_F] − d dᵀ D_f ẋ the force loop along the
 target's force direction d (e_F = F_d − F_c; F_c = −d·F_meas is the force the end-effector
-exerts on the environment). The gravity part of H is applied by the simulator (the robot's
-own compensation); m ẍ_d is the inertial part of H, with the nominal end-effector mass the
-robot knows about itself.
+exerts on the environment). The gravity and Coriolis parts of H are applied by the robot's
+own torque loop; Λ ẍ_d is the inertial part of H (Eq. 1: "inertia, Coriolis and gravity").
+Λ is the robot model's task-space inertia Λ(q) where the observation carries it (the 3-D
+arm: 1-10 kg along the plans, issue #38) and the nominal end-effector mass m otherwise.
+
+With Λ(q), the ``critical`` damping rule is the factorization design of Albu-Schäffer et al.
+(2003), K_d = ζ (Λ^½ K_p^½ + K_p^½ Λ^½): for K_p = k I it is 2ζ √k Λ^½, so every eigen-
+direction of Λ (mass m_i) is damped with ratio ζ at its own ω_i = √(k / m_i); for a scalar
+mass it is the scalar rule 2ζ √(K_p m).
 
 A controller holds a :class:`HybridLoop` (its ``controller.loop`` config block) and passes it
 the stiffness and damping it chose this step: :class:`ccm.control.impedance.FixedImpedance`
@@ -20,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.control._impedance_kernels import impedance_kernel
+from ccm.control._impedance_kernels import critical_damping_matrix, impedance_kernel
 from ccm.core.errors import (
     check_bool,
     check_choice,
@@ -31,21 +37,31 @@ from ccm.core.errors import (
 from ccm.core.types import Observation, TargetSample
 
 DAMPING_RULES = ("critical", "paper", "fixed")
+#: where the inertia of H and of the critical rule comes from (:class:`HybridLoop`)
+INERTIA_SOURCES = ("model", "nominal")
 #: the signals a loop logs, in this order, after the controller's gains
 LOOP_SIGNALS = ("force_error_N", "force_control")
 
 
 def damping_from_rule(
-    stiffness: np.ndarray | float, rule: str, mass_kg: float, zeta: float, fixed: float
+    stiffness: np.ndarray | float,
+    rule: str,
+    mass_kg: float | np.ndarray,
+    zeta: float,
+    fixed: float,
 ) -> np.ndarray | float:
     """Damping K_d for stiffness K_p under a named rule.
 
-    * ``critical``: K_d = 2 ζ sqrt(K_p m) — damping ratio ζ for the end-effector mass m.
+    * ``critical``: K_d = 2 ζ sqrt(K_p m) — damping ratio ζ for the end-effector mass m; for
+      an inertia matrix Λ (n, n) the (n, n) factorization design of the module docstring.
     * ``paper``: K_d = sqrt(K_p) / 4, the rule stated after Eq. 4c of seed A. For m = 1 kg it
       gives ζ = 1/8, i.e. under-damped, despite the paper calling it critical damping.
     * ``fixed``: K_d = ``fixed`` regardless of K_p.
     """
     if rule == "critical":
+        if isinstance(mass_kg, np.ndarray):
+            kp = np.broadcast_to(np.asarray(stiffness, dtype=float), (mass_kg.shape[0],))
+            return critical_damping_matrix(mass_kg, np.ascontiguousarray(kp), float(zeta))
         return 2.0 * zeta * np.sqrt(np.asarray(stiffness) * mass_kg)
     if rule == "paper":
         return np.sqrt(np.asarray(stiffness)) / 4.0
@@ -57,18 +73,27 @@ def impedance_term(
     target: TargetSample,
     kp: np.ndarray | float,
     kd: np.ndarray | float,
-    mass_kg: float,
+    mass_kg: float | np.ndarray,
     inertia_feedforward: bool,
     compiled: bool = True,
 ) -> np.ndarray:
-    """K_p Δx + K_d Δẋ + m ẍ_d in every direction (the motion part of Eq. 1, seed A, before
+    """K_p Δx + K_d Δẋ + Λ ẍ_d in every direction (the motion part of Eq. 1, seed A, before
     the projection P_m onto the motion subspace). A new array.
 
-    ``kp``/``kd``: scalars or per-axis vectors. With ``compiled`` those run through
-    :func:`ccm.control._impedance_kernels.impedance_kernel` (same arithmetic in the same
-    order, bit for bit); otherwise, or for other gain shapes, the numpy lines below.
+    ``kp``: a scalar or per-axis vector; ``kd``: that or an (n, n) matrix; ``mass_kg``: the
+    scalar mass m or the (n, n) inertia Λ. Scalar masses with scalar or per-axis gains run,
+    with ``compiled``, through :func:`ccm.control._impedance_kernels.impedance_kernel` (same
+    arithmetic in the same order, bit for bit); everything else through the numpy lines below.
     """
     n = obs.position.shape[0]
+    if _is_matrix(mass_kg) or _is_matrix(kd):
+        u = kp * (target.position - obs.position)
+        e_vel = target.velocity - obs.lin_vel
+        u += kd @ e_vel if _is_matrix(kd) else kd * e_vel
+        if inertia_feedforward:
+            acc = target.acceleration
+            u += mass_kg @ acc if _is_matrix(mass_kg) else mass_kg * acc
+        return u
     if compiled and _kernel_gain(kp, n) and _kernel_gain(kd, n):  # checks of ~0.1 µs
         return impedance_kernel(
             target.position, obs.position, target.velocity, obs.lin_vel, target.acceleration,
@@ -88,6 +113,17 @@ def impedance_term(
 _F64 = np.dtype(np.float64)
 
 
+def _is_matrix(x: object) -> bool:
+    """Whether a gain or mass is an (n, n) matrix (Λ, or K_d designed from it)."""
+    return type(x) is np.ndarray and x.ndim == 2  # type: ignore[attr-defined]
+
+
+def mean_gain(k: np.ndarray | float) -> float:
+    """A gain's logged value: its axis mean (the diagonal's mean for an (n, n) matrix)."""
+    a = np.asarray(k, dtype=float)
+    return float(np.mean(np.diagonal(a) if a.ndim == 2 else a))
+
+
 def _kernel_gain(k: object, n: int) -> bool:
     """Whether the kernel takes gain ``k`` for ``n`` axes: a float, or float64 shape (n,)."""
     t = type(k)
@@ -105,7 +141,9 @@ class HybridLoop:
         damping_ratio: ζ for the ``critical`` rule.
         damping: K_d [N s/m] for the ``fixed`` rule.
         mass_kg: nominal end-effector mass [kg] (critical rule, inertial feed-forward).
-        inertia_feedforward: add m ẍ_d (part of H in Eq. 1).
+        inertia_feedforward: add Λ ẍ_d (part of H in Eq. 1).
+        inertia: ``model``: Λ(q) from the observation where it carries one (the 3-D arm),
+            else ``mass_kg``; ``nominal``: ``mass_kg`` always (ccm before issue #38).
         rot_stiffness: orientation stiffness [N m/rad]; rot_damping [N m s/rad].
         force_kp: proportional force gain k_fp [-]; force_ki: integral gain k_fi [1/s].
         force_damping: D_f [N s/m] along the force direction.
@@ -120,6 +158,7 @@ class HybridLoop:
         damping: float = 30.0,
         mass_kg: float = 1.0,
         inertia_feedforward: bool = True,
+        inertia: str = "model",
         rot_stiffness: float = 5.0,
         rot_damping: float = 0.5,
         force_kp: float = 0.5,
@@ -133,6 +172,7 @@ class HybridLoop:
         self.fixed_damping = check_nonneg(f"{key}.damping", damping)
         self.mass_kg = check_positive(f"{key}.mass_kg", mass_kg)
         self.inertia_feedforward = check_bool(f"{key}.inertia_feedforward", inertia_feedforward)
+        self.inertia = check_choice(f"{key}.inertia", inertia, INERTIA_SOURCES)
         self.rot_stiffness = check_nonneg(f"{key}.rot_stiffness", rot_stiffness)
         self.rot_damping = check_nonneg(f"{key}.rot_damping", rot_damping)
         self.force_kp = check_nonneg(f"{key}.force_kp", force_kp)
@@ -162,8 +202,22 @@ class HybridLoop:
         self.force_error_N = 0.0
         self.force_control = 0.0
 
-    def damping_for(self, kp: np.ndarray | float) -> np.ndarray | float:
-        """K_d for K_p under the configured rule (a float for a float, fast path)."""
+    def inertia_of(self, obs: Observation) -> float | np.ndarray:
+        """The inertia of H and of the critical rule this step: the observation's Λ(q)
+        [kg], (n, n), under ``inertia: model`` where it has one; else ``mass_kg``."""
+        lam = obs.inertia
+        return lam if lam is not None and self.inertia == "model" else self.mass_kg
+
+    def damping_for(
+        self, kp: np.ndarray | float, inertia: float | np.ndarray | None = None
+    ) -> np.ndarray | float:
+        """K_d for K_p under the configured rule, for ``inertia`` (:meth:`inertia_of`;
+        None: ``mass_kg``). A float for a float and the scalar mass (fast path); an (n, n)
+        matrix for Λ under the critical rule."""
+        if _is_matrix(inertia):
+            return damping_from_rule(
+                kp, self.damping_rule, inertia, self.damping_ratio, self.fixed_damping
+            )
         if isinstance(kp, float):  # np.float64 too
             if self.damping_rule == "critical":
                 return 2.0 * self.damping_ratio * math.sqrt(kp * self.mass_kg)
@@ -183,7 +237,7 @@ class HybridLoop:
         ``last_force_loop``; it is :attr:`zero` (the same object) on a motion-only segment.
         """
         u_motion = impedance_term(
-            obs, target, kp, kd, self.mass_kg, self.inertia_feedforward
+            obs, target, kp, kd, self.inertia_of(obs), self.inertia_feedforward
         )  # fmt: skip
         d = target.force_dir
         if d is None:

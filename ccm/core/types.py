@@ -30,6 +30,10 @@ class Observation:
             It comes from the modelled F/T sensor (with its noise and bias), never from the
             command.
         torque: measured external torque about the end-effector origin [N m], shape (r,).
+        inertia: the robot model's translational task-space inertia Λ(q) [kg], shape (n, n),
+            at the measured joint angles (what a real arm's model library gives, e.g.
+            Franka's), or ``None`` where the end-effector's inertia does not depend on a
+            configuration (the planar world's body, whose mass the controllers know).
     """
 
     t: float
@@ -39,6 +43,7 @@ class Observation:
     ang_vel: np.ndarray
     force: np.ndarray
     torque: np.ndarray
+    inertia: np.ndarray | None = None
 
     @property
     def dim(self) -> int:

@@ -296,15 +296,15 @@ class AnticipatoryAVIC(ContactEvents, Controller):
             ff_c, ff_i = (ff if k in self.cfg.transition_feedforward else None for k in KINDS)
             hyb = base.loop
             d, u_fc = target.force_dir, hyb.last_force_loop
-            m, m_ff = hyb.mass_kg, hyb.inertia_feedforward
+            m, m_ff = hyb.inertia_of(obs), hyb.inertia_feedforward
             if a_c > 0.0:  # Eq. 1's force loop kept across the motion only
                 keep = d is not None and not self._force_along_motion(d, target)
-                gains = (self.k_collision, hyb.damping_for(self.k_collision))
+                gains = (self.k_collision, hyb.damping_for(self.k_collision, m))
                 force += a_c * transition_force(
                     obs, target, gains, m, m_ff, u_fc if keep else None, ff_c
                 )
             if a_i > 0.0:
-                gains = (base.k_max, hyb.damping_for(base.k_max))
+                gains = (base.k_max, hyb.damping_for(base.k_max, m))
                 force += a_i * transition_force(obs, target, gains, m, m_ff, u_fc, ff_i)
             cmd = Command(force=force, torque=cmd.torque)
             self._stiffness = (1.0 - alpha) * k1 + a_c * self.k_collision + a_i * base.k_max

@@ -51,7 +51,7 @@ import numpy as np
 from ccm.control.adaptive.logistic import LogisticGate
 from ccm.control.adaptive.modal import ContactModes
 from ccm.control.base import STATE_ERRORS, Controller, check_state_keys, state_error
-from ccm.control.loop import HybridLoop
+from ccm.control.loop import HybridLoop, mean_gain
 from ccm.core.errors import (
     ConfigError,
     check_bool,
@@ -224,7 +224,7 @@ class AVIC(Controller):
         lam = 0.0 if stiff else self._lam
         kp = self.k_max if stiff else self.stiffness_for(lam)
         loop = self.loop
-        kd = loop.damping_for(kp)
+        kd = loop.damping_for(kp, loop.inertia_of(obs))
         u_motion, u_force = loop.motion_force(obs, target, kp, kd)
         model = self.model
         if fused:
@@ -245,7 +245,7 @@ class AVIC(Controller):
         sig = self._signals  # the fixed key set of _avic_signals, updated in place
         sig["lambda"], sig["pred_force_N"], sig["persist_force_N"] = self._lam, pred, persist
         sig["pred_error_N"], sig["pred_error_lp_N"] = err, self._err_lp
-        sig["stiffness_Npm"], sig["damping_Nspm"] = kp, kd
+        sig["stiffness_Npm"], sig["damping_Nspm"] = kp, mean_gain(kd)
         sig["n_components"] = float(getattr(model, "n_components", 0))
         sig["calibrating"] = 1.0 if calibrating else 0.0
         sig["force_error_N"], sig["force_control"] = loop.force_error_N, loop.force_control

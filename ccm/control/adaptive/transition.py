@@ -10,7 +10,7 @@ a collision, K_max around an impact-less transition). So u_ff is the base's feed
 base controller applied it in the same step
 (:attr:`ccm.control.adaptive.avic.AVIC.last_feedforward`:
 zero while Algorithm 1 holds K_max, where λ = 0). H is the robot's own compensation (the
-simulator's inverse dynamics) plus m ẍ_d when ``inertia_feedforward`` is on. The hybrid
+simulator's inverse dynamics) plus Λ ẍ_d (or m ẍ_d) when ``inertia_feedforward`` is on. The hybrid
 force loop u_fc of Eq. 1 is kept where the caller says so (``keep_force_loop``): across the
 motion (a press on the table while sliding into a wall), not along it.
 
@@ -60,8 +60,8 @@ def check_kinds(key: str, value: Any) -> tuple[str, ...]:
 def transition_force(
     obs: Observation,
     target: TargetSample,
-    gains: tuple[float, float],
-    mass_kg: float,
+    gains: tuple[float, float | np.ndarray],
+    mass_kg: float | np.ndarray,
     inertia_feedforward: bool,
     force_loop: np.ndarray | None,
     feedforward: np.ndarray | None,
@@ -70,8 +70,9 @@ def transition_force(
 
     Args:
         obs, target: this step's observation and target.
-        gains: K* [N/m] and D* [N s/m].
-        mass_kg, inertia_feedforward: as :func:`ccm.control.loop.impedance_term`.
+        gains: K* [N/m] and D* [N s/m] (a scalar, or (n, n) for the arm's Λ(q)).
+        mass_kg, inertia_feedforward: as :func:`ccm.control.loop.impedance_term` (the mass
+            or Λ(q), :meth:`ccm.control.loop.HybridLoop.inertia_of`).
         force_loop: the base's force-loop force u_fc this step, replacing the impedance
             along the commanded force direction; None keeps the impedance there.
         feedforward: the base's λ Ŵ this step, subtracted as in Eq. 4a (u_ff); None: none.

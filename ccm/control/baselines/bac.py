@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from ccm.control.base import STATE_ERRORS, Controller, check_state_keys, state_error
-from ccm.control.loop import HybridLoop
+from ccm.control.loop import HybridLoop, mean_gain
 from ccm.core import vector
 from ccm.core.errors import (
     ConfigError,
@@ -154,8 +154,10 @@ class BAC(Controller):
             "force_control": 0.0,
         }
 
-    def _damping(self, k: np.ndarray) -> np.ndarray:
-        return np.asarray(self.loop.damping_for(k), dtype=float)
+    def _damping(self, k: np.ndarray, obs: Observation | None = None) -> np.ndarray:
+        """D(k) by the loop's rule, for this step's inertia (the nominal mass without ``obs``)."""
+        inertia = None if obs is None else self.loop.inertia_of(obs)
+        return np.asarray(self.loop.damping_for(k, inertia), dtype=float)
 
     @property
     def horizon_steps(self) -> int | None:
@@ -169,7 +171,7 @@ class BAC(Controller):
         else:
             idx = min(self._step, self.force_profile.shape[0] - 1)
             f, k = self.force_profile[idx], self.stiffness_profile[idx]
-        kd = self._damping(k)
+        kd = self._damping(k, obs)
         u_motion, u_force = self.loop.motion_force(obs, target, k, kd)
         d = target.force_dir
         e_p = target.position - obs.position
@@ -183,7 +185,7 @@ class BAC(Controller):
         self._step += 1
         s = self._signals
         s["stiffness_Npm"] = vector.mean(k)
-        s["damping_Nspm"] = vector.mean(kd)
+        s["damping_Nspm"] = mean_gain(kd)
         s["ff_force_N"] = vector.norm(f)
         s["force_error_N"] = self.loop.force_error_N
         s["force_control"] = self.loop.force_control

@@ -401,6 +401,7 @@ class PyBullet3D(Simulator):
             ang_vel=ang,
             force=f_meas,
             torque=t_meas,
+            inertia=self.torque_loop.translational_inertia(*self._joint_state()),
         )
         hand = {}
         if self._hand is not None:  # the hand's force is external too, not a contact

@@ -63,6 +63,10 @@ class TorqueLoop:
         self._hold = np.zeros(0)
         self._posture = np.zeros(0)
         self.q_rest = np.zeros(N_ARM)
+        # the model terms of the last joint state (the array object ``q``): the observation's
+        # Λ and the next physics step's torques are computed at the same state
+        self._terms_q: np.ndarray | None = None
+        self._terms: tuple[np.ndarray, ...] = ()
 
     def attach(self, p: Any, cid: int, robot: int, tool_link: int, tip_link: Any) -> None:
         """Use the robot just loaded into client ``cid`` (Pinocchio's model on first use)."""
@@ -87,7 +91,7 @@ class TorqueLoop:
         ``orn`` (x, y, z, w) and angular velocity ``omega``."""
         if self.dynamics is None:
             return self._torques_pybullet(wrench, q, dq, orn, omega)
-        minv, jac, jdq, h = self.dynamics.torque_terms(q, dq)
+        minv, jac, jdq, h = self._pinocchio_terms(q, dq)
         self._hold[6:10] = orn
         self._hold[10:] = omega
         self._posture[2 + N_ARM : 2 + 2 * N_ARM] = q
@@ -96,6 +100,40 @@ class TorqueLoop:
             minv, jac, jdq, h, wrench, self._hold, self._posture,
             self.config.task_coriolis_compensation,
         )  # fmt: skip
+
+    def _pinocchio_terms(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, ...]:
+        """``(M⁻¹, J, J̇ q̇, h)`` at ``(q, q̇)``, computed once per joint state (the array
+        object ``q`` that the backend reads after each physics step)."""
+        if q is not self._terms_q:
+            assert self.dynamics is not None
+            self._terms = self.dynamics.torque_terms(q, dq)
+            self._terms_q = q
+        return self._terms
+
+    def translational_inertia(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """The tool point's translational task-space inertia at joint angles ``q`` [kg], (3, 3):
+        the f → ẍ map of this loop, for the controller's H (seed A Eq. 1's inertia; the
+        robot model's, not the simulator's truth).
+
+        With the orientation hold on, the hold supplies the moments that keep the tool's
+        rotation, so at the translational loop's frequencies (~5 rad/s at K_free = 300 N/m)
+        a force moves the tool as if its rotation were locked: the inertia is the
+        translational block of the 6-D Λ = (J M⁻¹ Jᵀ)⁻¹ ([f; m] = Λ [ẍ; 0]). The hold takes
+        ~0.1 s to catch up (measured with the tool point at [0.45, 0, 0.35] m: 5 N
+        along x gives 4.2 m/s² over the first 20 ms, the unlocked (J_v M⁻¹ J_vᵀ)⁻¹ value, and
+        1.4 m/s² averaged over 100 ms, on the way to the locked 0.57 m/s²). Without the hold
+        the moment is zero and the inertia is (J_v M⁻¹ J_vᵀ)⁻¹.
+        """
+        if self.dynamics is not None:
+            minv, jac = self._pinocchio_terms(q, dq)[:2]
+            mobility = jac @ minv @ jac.T  # J M⁻¹ Jᵀ, (6, 6)
+        else:
+            jac, _, _, minv_jt, _ = self.model_terms(q, dq, True)
+            mobility = jac @ minv_jt
+        cfg = self.config
+        if cfg.orientation_stiffness > 0.0 or cfg.orientation_damping > 0.0:
+            return np.linalg.inv(mobility)[:3, :3]
+        return np.linalg.inv(mobility[:3, :3])
 
     def _torques_pybullet(
         self, wrench: np.ndarray, q: np.ndarray, dq: np.ndarray, orn: Any, omega: np.ndarray
