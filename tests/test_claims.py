@@ -264,3 +264,51 @@ def test_every_claim_is_in_the_claim_map() -> None:
         c.id for c in load_claims(root / "experiments" / "claims.yaml") if c.id not in listed
     ]
     assert missing == []
+
+
+def test_a_claim_can_fix_the_sign_test_as_its_rule() -> None:
+    """``test: sign`` (issue #38): the sign test decides even for normal margins; at n = 10,
+    9 holding runs reproduce (p = 0.011) and 8 do not (p = 0.055: partially)."""
+    c = parse_claim({**LESS, "test": "sign"}, "claims[0]")
+    nine = [(1.0, 2.0 + 0.01 * i) for i in range(9)] + [(2.5, 2.0)]
+    v = evaluate(c, [_summary("e", a, b) for a, b in nine])
+    assert v.verdict == "reproduced" and "sign test (9 of 10 hold, p = 0.0107; the claim" in v.ours
+    # margins b − a at the normal quantiles of 0.5 ± 0.5: 8 of 10 hold
+    margins = [-0.322, -0.018, 0.163, 0.307, 0.437, 0.563, 0.693, 0.837, 1.018, 1.322]
+    eight = [_summary("e", 1.0, 1.0 + m) for m in margins]
+    assert evaluate(c, eight).verdict == "partially"
+    auto = evaluate(parse_claim(LESS, "claims[0]"), eight)  # normal: the t-interval decides
+    assert auto.verdict == "reproduced" and "95 % t-interval" in auto.ours
+    with pytest.raises(ConfigError, match=r"claims\[0\]\.test"):
+        parse_claim({**LESS, "test": "wilcoxon"}, "claims[0]")
+
+
+def test_identical_runs_are_one_run_not_a_sample() -> None:
+    """Ten seeds of a deterministic protocol (seed A §4.1's noiseless world) give the same
+    margin: the verdict is that one run's, and the report says so instead of a p-value."""
+    for test in ("auto", "sign"):
+        c = parse_claim({**LESS, "test": test}, "claims[0]")
+        v = evaluate(c, [_summary("e", 1.0, 2.0)] * 10)
+        assert v.verdict == "reproduced" and "10 runs are identical (deterministic)" in v.ours
+        assert "p =" not in v.ours
+        v = evaluate(c, [_summary("e", 3.0, 2.0)] * 10)
+        assert v.verdict == "not reproduced"
+
+
+def test_diagnostic_claims_are_flagged() -> None:
+    """``diagnostic: true`` marks a robustness row (shown, not tallied: test_report); the
+    shipped H1 forward-model claims are judged on seed A §4.1's protocol, with their noisy
+    50 ms twins as diagnostic rows (issue #38)."""
+    assert parse_claim({**LESS, "diagnostic": True}, "c").diagnostic
+    assert not parse_claim(LESS, "c").diagnostic
+    with pytest.raises(ConfigError, match=r"claims\[0\]\.diagnostic"):
+        parse_claim({**LESS, "diagnostic": "yes"}, "claims[0]")
+    shipped = {c.id: c for c in load_claims(CLAIMS)}
+    for cid in ("H1-forward-model", "H1-incremental-beats-persistence", "H1-fixed-gmm-guided-avic"):
+        paper, robust = shipped[cid], shipped[f"{cid}-noisy-50ms"]
+        assert paper.experiment == "h1_forward_model_one_step" and not paper.diagnostic
+        assert robust.experiment == "h1_forward_model" and robust.diagnostic
+        assert paper.test == robust.test == "sign"
+        assert (paper.compare, paper.a, paper.b, paper.value, paper.requires) == (
+            robust.compare, robust.a, robust.b, robust.value, robust.requires
+        )  # fmt: skip

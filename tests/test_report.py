@@ -207,3 +207,24 @@ def test_cli_report_command(sweep: Path, tmp_path: Path, capsys: pytest.CaptureF
     assert ccm_main(["report", str(tmp_path / "missing")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("ccm: error: report.dir")
+
+
+def test_diagnostic_claims_are_shown_but_not_tallied(sweep: Path) -> None:
+    """``diagnostic: true`` (issue #38: a robustness row beside the paper's protocol): the
+    row and its verdict are in the report, marked, and the tally counts only the others."""
+    import shutil
+
+    shutil.rmtree(sweep / "3")  # the failed run: c1 gets a verdict
+    diag = """  - {id: c3, paper: seed_b, source: "Fig. 6", statement: "x below y, noisy",
+     paper_value: "q", experiment: e, compare: less_than, a: {condition: x, metric: m},
+     b: {condition: y, metric: m}, diagnostic: true}
+"""
+    claims = sweep.parent / "claims.yaml"
+    claims.write_text(claims.read_text(encoding="utf-8") + diag, encoding="utf-8")
+    assert main([str(sweep), "--claims", str(claims)]) == 0
+    md = (sweep / "report.md").read_text(encoding="utf-8")
+    page = (sweep / "report.html").read_text(encoding="utf-8")
+    assert "claims: 2 in claims.yaml: 1 not measured, 1 reproduced" in md
+    assert "(and 1 diagnostic, not tallied: 1 reproduced)" in md
+    assert "**c3**" in md and "**reproduced** (diagnostic, not tallied)" in md
+    assert "<b>reproduced</b> (diagnostic, not tallied)" in page

@@ -40,6 +40,12 @@ either direction, before "unchanged" can mean anything). ``task`` restricts a cl
 runs of one task of a sweep over tasks. A run that misses a requirement
 does not count as holding; if no run meets the requirements the claim is **not reproduced**,
 and if only some do, a *reproduced* verdict becomes **partially**.
+
+``test: sign`` fixes the verdict's rule to the sign test (written before the runs; see
+:mod:`ccm.reporting.claim_stats`), instead of ``auto``. ``diagnostic: true`` marks a claim
+judged on a protocol other than the paper's (a robustness row, e.g. H1 under sensor noise
+beside seed A §4.1's noiseless one): the report shows its verdict but does not count it in
+the tally.
 """
 
 from __future__ import annotations
@@ -53,7 +59,7 @@ from typing import Any
 import numpy as np
 
 from ccm.core.errors import ConfigError, check_keys
-from ccm.reporting.claim_stats import decide, mean_ci
+from ccm.reporting.claim_stats import TESTS, decide, mean_ci
 
 COMPARISONS = (
     "less_than", "ratio_at_most", "at_most", "at_least", "difference_at_most", "within",
@@ -63,7 +69,7 @@ _TWO_REFS = ("less_than", "ratio_at_most", "difference_at_most", "ratio_within")
 _WITHIN = ("within", "ratio_within")  # value ± tolerance × |value|
 _CLAIM_KEYS = ("id", "paper", "source", "statement", "paper_value", "experiment", "compare",
                "a", "b", "value", "tolerance", "figures", "note", "discussion", "requires",
-               "task")  # fmt: skip
+               "task", "test", "diagnostic")  # fmt: skip
 _REF_KEYS = ("condition", "metric", "trial", "abs")
 #: the pseudo-condition of a run's scalar wall-clock facts (run_info.json, joined by ccm report)
 RUN_INFO = "run_info"
@@ -146,6 +152,8 @@ class Claim:
     discussion: str = ""  # the protocol note that discusses the outcome (experiments/*.md)
     requires: tuple[Requirement, ...] = ()
     task: str | None = None  # judge only the runs of this task (summary.json ``task``)
+    test: str = "auto"  # the verdict's rule over seeds: auto | sign (claim_stats.TESTS)
+    diagnostic: bool = False  # a robustness row: shown in the report, not tallied
 
 
 @dataclass
@@ -235,6 +243,12 @@ def parse_claim(d: Any, key: str) -> Claim:
     if not isinstance(reqs, list):
         raise ConfigError(f"{key}.requires", "must be a list of {condition, metric, bounds}")
     requires = tuple(_requirement(f"{key}.requires[{i}]", r) for i, r in enumerate(reqs))
+    test = d.get("test", "auto")
+    if test not in TESTS:
+        raise ConfigError(f"{key}.test", f"must be one of {', '.join(TESTS)}, got {test!r}")
+    diagnostic = d.get("diagnostic", False)
+    if not isinstance(diagnostic, bool):
+        raise ConfigError(f"{key}.diagnostic", f"must be true or false, got {diagnostic!r}")
     return Claim(
         id=str(d["id"]), paper=d["paper"], source=str(d["source"]),
         statement=str(d["statement"]), paper_value=str(d["paper_value"]),
@@ -243,6 +257,7 @@ def parse_claim(d: Any, key: str) -> Claim:
         figures=tuple(figures), note=str(d.get("note", "")),
         discussion=str(d.get("discussion", "")), requires=requires,
         task=None if d.get("task") is None else str(d["task"]),
+        test=test, diagnostic=diagnostic,
     )  # fmt: skip
 
 
@@ -345,7 +360,7 @@ def evaluate(claim: Claim, summaries: Sequence[Mapping[str, Any]]) -> Verdict:
     def holds(x: float) -> bool:
         return x > 0 if strict else x >= 0
 
-    decision = decide(margins, holds)
+    decision = decide(margins, holds, claim.test)
     verdict = decision.verdict
     if not any(acting):
         verdict = "not reproduced"

@@ -36,7 +36,7 @@ PAPER_EXPERIMENTS = (
     "h4_contact_learning", "h4_impactless", "h2_changing_surface", "mpc_rail", "h4_collisions",
     "gp_contact_models",
     "contact_head_to_head", "mpc_polishing", "mpc_table2", "mpc_goal_inference", "h1_forward_model",
-    "mpc_convexity", "h4_impact_design",
+    "h1_forward_model_one_step", "mpc_convexity", "h4_impact_design",
 )  # fmt: skip
 
 

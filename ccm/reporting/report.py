@@ -10,7 +10,8 @@ Table 2); summary.json itself stays free of them (it must be identical run to ru
 experiment
   has runs under DIR, the paper's value, ours (mean ± 95 % CI over the seeds found) and the
   verdict, with the claim's figures from the run of the lowest seed next to it. Claims whose
-  experiment has no run under DIR are listed as not measured.
+  experiment has no run under DIR are listed as not measured. Diagnostic claims (robustness
+  rows, ``diagnostic: true``) are shown, marked, and left out of the tally.
 * **Metrics**: per experiment and condition, the mean ± 95 % CI over seeds of every numeric
   metric (pandas), in a collapsible table.
 * **Failures**: every run whose summary says ``failed``, with its cause.
@@ -249,12 +250,7 @@ def render(
     failures = [(d, f"{s.get('status', '?')}: {s.get('error', '?')}")
                 for d, s in runs if s.get("status") != "ok"]  # fmt: skip
     failures += [(a.run, f"set aside ({a.kind}): {a.reason}") for a in aside]
-    counts: dict[str, int] = {}
-    for v in verdicts:
-        counts[v.verdict] = counts.get(v.verdict, 0) + 1
-    tally_claims = f"{len(verdicts)} in {claims_path.name}: " + ", ".join(
-        f"{n} {k}" for k, n in sorted(counts.items())
-    )
+    tally_claims = claim_tally(verdicts, claims_path.name)
     md, hb = _header(root, runs, f"{tally(runs, aside)}; claims: {tally_claims}.")
     for part in (
         _claim_rows(verdicts, runs, root),
@@ -266,6 +262,24 @@ def render(
         hb += part[1]
     hb.append("</body></html>")
     return "\n".join(md) + "\n", "\n".join(hb) + "\n"
+
+
+def claim_tally(verdicts: Sequence[Verdict], name: str) -> str:
+    """'N in <name>: k reproduced, ...' over the tallied claims, then the diagnostic rows
+    (shown, not counted) with their own verdicts."""
+
+    def counts(vs: Sequence[Verdict]) -> str:
+        c: dict[str, int] = {}
+        for v in vs:
+            c[v.verdict] = c.get(v.verdict, 0) + 1
+        return ", ".join(f"{n} {k}" for k, n in sorted(c.items()))
+
+    tallied = [v for v in verdicts if not v.claim.diagnostic]
+    diagnostic = [v for v in verdicts if v.claim.diagnostic]
+    text = f"{len(tallied)} in {name}: {counts(tallied)}"
+    if diagnostic:
+        text += f" (and {len(diagnostic)} diagnostic, not tallied: {counts(diagnostic)})"
+    return text
 
 
 def _header(root: Path, runs: Sequence[tuple[Path, dict[str, Any]]], line: str) -> Section:
@@ -310,9 +324,10 @@ def _claim_rows(
         md_figs = " ".join(f"[{f}]({p.relative_to(root)})" for f, p in figs if p is not None)
         note = f" ({c.note})" if c.note else ""
         doc = f"; discussed in `{c.discussion}`" if c.discussion else ""
+        diag = " (diagnostic, not tallied)" if c.diagnostic else ""
         md.append(
             f"| **{c.id}**: {c.statement}{note} | {c.paper}, {c.source}, `{c.experiment}`{doc} | "
-            f"{c.paper_value} | {v.ours} | **{v.verdict}** {md_figs} |"
+            f"{c.paper_value} | {v.ours} | **{v.verdict}**{diag} {md_figs} |"
         )
         imgs = "".join(
             f"<img alt='{html.escape(f)}' src='data:image/png;base64,"
@@ -324,7 +339,7 @@ def _claim_rows(
             f"<td>{html.escape(f'{c.paper}, {c.source}')}<br><code>{html.escape(c.experiment)}"
             f"</code>{_discussed(c.discussion)}</td><td>{html.escape(c.paper_value)}</td>"
             f"<td>{html.escape(v.ours)}</td>"
-            f"<td class='{v.verdict.replace(' ', '-')}'><b>{html.escape(v.verdict)}</b></td>"
+            f"<td class='{v.verdict.replace(' ', '-')}'><b>{html.escape(v.verdict)}</b>{diag}</td>"
             f"<td>{imgs}</td></tr>"
         )
     return md, hb
