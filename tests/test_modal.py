@@ -179,6 +179,40 @@ def test_min_mode_samples_zero_leaves_release_to_eq_4c() -> None:
     assert sig[decided + 3]["stiffness_Npm"] < 3000.0
 
 
+def _release_and_streak(sig: list[dict], eps0: float, window: int) -> tuple[int, int]:
+    """(first step after the decision below K_max, the step at which the prequential errors
+    since the decision were below ε₀ ``window`` times in a row)."""
+    decided = next(i for i, s in enumerate(sig) if s["mode_event"] > 0)
+    release = next(i for i in range(decided, len(sig)) if sig[i]["stiffness_Npm"] < 3000.0)
+    streak = 0
+    for i in range(decided + 1, len(sig)):
+        e = sig[i]["pred_error_N"]
+        streak = streak + 1 if e < eps0 else 0  # NaN (no prediction yet): no evidence
+        if streak == window:
+            return release, i
+    return release, -1
+
+
+def test_prequential_evidence_holds_k_max_until_the_window_of_good_predictions() -> None:
+    """evidence=prequential: after a decision K_max holds exactly until the mode's model has
+    predicted ``evidence_window`` samples in a row below ε₀ (each before learning it), for a
+    new mode and for a known one; the known one's model predicts well at once."""
+    window = 40
+    c = make(evidence="prequential", evidence_window=window)
+    eps0 = c.gate.eps0
+    new = run(c, 400, mu=0.3)
+    run(c, 400, mu=0.6, seed=1)
+    known = run(c, 400, mu=0.3, seed=2)
+    for sig in (new, known):
+        release, full = _release_and_streak(sig, eps0, window)
+        # the step's own error counts before its command: released in the window's last step
+        assert full > 0 and release == full, (release, full)
+    k_dec = next(i for i, s in enumerate(known) if s["mode_event"] > 0)
+    assert known[k_dec + 1 : k_dec + window + 1] and all(
+        s["pred_error_N"] < eps0 for s in known[k_dec + 2 : k_dec + window + 1]
+    )
+
+
 @pytest.mark.parametrize(
     ("modes", "key"),
     [
@@ -189,6 +223,8 @@ def test_min_mode_samples_zero_leaves_release_to_eq_4c() -> None:
         ({"trigger": {"width": 3}}, "controller.modes.trigger.width"),
         ({"batch_size": 0}, "controller.modes.batch_size"),
         ({"min_mode_samples": -1}, "controller.modes.min_mode_samples"),
+        ({"evidence": "count"}, "controller.modes.evidence"),
+        ({"evidence_window": 0}, "controller.modes.evidence_window"),
         ({"classifier": {"confidence_threshold": 1.5}}, "controller.modes.classifier"),
         ({"classifier": []}, "controller.modes.classifier"),
         ({"sliding_speed": float("nan")}, "controller.modes.sliding_speed"),

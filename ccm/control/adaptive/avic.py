@@ -217,6 +217,8 @@ class AVIC(Controller):
                 persist = float(s_past[2])
                 err = math.hypot(d_f - pred, d_tq - pred_tq)
                 self._observe_error(err)
+                if modes is not None:  # the prequential evidence rule's data
+                    modes.observe_error(err, self.gate.eps0)
             if not fused:
                 self.learn(s_past, d)
         calibrating = self.calibrating  # fixed during a trial

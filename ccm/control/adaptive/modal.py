@@ -22,10 +22,18 @@ direction, or with R below ``min_normal_force``, the tool is taken to be out of 
 −1, served by a free-space model.
 
 Evidence rule (ccm's choice; seed A §4.3 says a new mode's model is built "while operating
-under high stiffness" without saying for how long): a mode's model drives λ only once it
-has been revised with at least ``min_mode_samples`` samples; before that K_max is held.
-A known mode has them already, a new one must gather them. ``min_mode_samples: 0`` leaves
-the release to Eq. 4c alone.
+under high stiffness" without saying for how long), ``evidence``:
+
+* ``samples``: a mode's model drives λ only once it has been revised with at least
+  ``min_mode_samples`` samples; before that K_max is held. A known mode has them already, a
+  new one must gather them, so the rule itself makes a new mode's high-stiffness period
+  longer (by ``min_mode_samples`` control steps). ``min_mode_samples: 0`` leaves the
+  release to Eq. 4c alone.
+* ``prequential`` (issue #38): the evidence is the data's. After each mode decision K_max is
+  held until the mode's model has predicted ``evidence_window`` consecutive samples, each
+  before it learned that sample, with an error ε_t below Eq. 4c's midpoint ε₀ (the level at
+  which Eq. 4c itself calls a prediction good, λ = ½). A known mode's model can do that at
+  once; a new one only once it has learned the surface, however many samples that takes.
 """
 
 from __future__ import annotations
@@ -55,6 +63,8 @@ from ccm.learn.contact.modes import ModeClassifier
 from ccm.learn.mixtures.forward_model import make_forward_model
 
 TRIGGER_SIGNALS = ("tangential_force", "feature")
+#: what ends a mode's high-stiffness period besides Eq. 4c (module docstring)
+EVIDENCE_RULES = ("samples", "prequential")
 FREE = -1  # mode id of "no contact mode" (free space, or not yet classified)
 
 
@@ -94,6 +104,8 @@ class ModeSettings:
     min_normal_force: float = checked(check_nonneg, 1.0)  # N
     sliding_speed: float = checked(check_nonneg, 0.01)  # m/s
     min_mode_samples: int = checked(check_int_nonneg, 0)
+    evidence: str = checked(one_of(EVIDENCE_RULES), "samples")
+    evidence_window: int = checked(check_int_positive, 100)  # samples (``prequential``)
     contact_loss_steps: int = checked(check_int_nonneg, 20)
     feature_lowpass_hz: float | None = checked(check_positive, None)  # Hz
     settle_time_constants: float = checked(check_nonneg, 3.0)
@@ -113,7 +125,8 @@ class ContactModes:
             ``trigger`` (``signal``: ``tangential_force`` [N] or ``feature`` [feature
             units]; ``threshold``; ``window`` [steps]), ``batch_size`` [samples],
             ``classifier`` (:class:`ModeClassifier` arguments except ``min_batch``),
-            ``min_normal_force`` [N], ``sliding_speed`` [m/s], ``min_mode_samples``,
+            ``min_normal_force`` [N], ``sliding_speed`` [m/s], ``evidence`` (``samples``
+            or ``prequential``, module docstring), ``min_mode_samples``, ``evidence_window``,
             ``contact_loss_steps`` (steps below ``min_normal_force`` that mean contact is
             lost; shorter dips, e.g. a force-loop transient, keep the mode),
             ``feature_lowpass_hz`` (first-order low-pass on ‖F_t‖, ‖τ‖ and R before Eq. 7,
@@ -146,6 +159,7 @@ class ContactModes:
         self.samples: dict[int, int] = {FREE: 0}
         self.mode = FREE
         self.model = free_model
+        self._streak = 0
 
     def make_trigger(self) -> TransitionTrigger:
         """A fresh :class:`TransitionTrigger` from the configured settings."""
@@ -160,6 +174,7 @@ class ContactModes:
         self.mode, self.model = FREE, self.models[FREE]
         self.switched = False  # whether the last before_step changed the mode
         self._collecting = False
+        self._streak = 0  # consecutive good predictions of the current mode's model
         self._pending = False  # in contact but not yet classified
         self._batch: list[np.ndarray] = []
         self._replay: list[tuple[np.ndarray, np.ndarray]] = []
@@ -271,6 +286,12 @@ class ContactModes:
         self.mode = mode
         self.model = self.models[mode]
         self.switched = True
+        self._streak = 0
+
+    def observe_error(self, err: float, eps0: float) -> None:
+        """One prequential prediction error ε_t [N] of the current mode's model (predicted
+        before it learned the sample) against Eq. 4c's midpoint ε₀ (``prequential``)."""
+        self._streak = self._streak + 1 if err < eps0 else 0  # NaN ε₀: no evidence
 
     def learn(self, s_prev: np.ndarray, d_now: np.ndarray) -> None:
         """Revise the current mode's model; during a batch, keep the sample for the decided
@@ -285,10 +306,15 @@ class ContactModes:
 
     def hold_k_max(self) -> bool:
         """K_max while a transition is being confirmed (Algorithm 1, line 3), while the mode is
-        unknown, and while the current mode's model lacks ``min_mode_samples`` samples."""
+        unknown, and until the current mode's model has the evidence of ``evidence``
+        (``min_mode_samples`` samples, or ``evidence_window`` good predictions in a row)."""
         if self._collecting or self._pending:
             return True
-        return self.mode != FREE and self.samples[self.mode] < self.mcfg.min_mode_samples
+        if self.mode == FREE:
+            return False
+        if self.mcfg.evidence == "prequential":
+            return self._streak < self.mcfg.evidence_window
+        return self.samples[self.mode] < self.mcfg.min_mode_samples
 
     def end_trial(self) -> None:
         """Every mode's model gets the end-of-trial hook (modes persist across trials)."""
