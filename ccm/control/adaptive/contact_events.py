@@ -96,19 +96,46 @@ class ContactEvents:
         rule the slow phase would last to the region's end. The stall's commanded speed
         (``_stall_speed``) and the largest force against u during it (``_stall_peak``) are
         its Eq. 9 measurement: an impact too small to detect.
+
+        The commanded motion u is the position-controlled part of the plan's velocity
+        (:meth:`_position_motion`): along a force direction that the collision transition keeps
+        under its force loop, the target's motion commands nothing.
         """
         active = any(w.kind == "collision" and not w.done and obs.t >= w.t1 for w in self._windows)
-        speed = math.sqrt(float(target.velocity @ target.velocity))
+        velocity = self._position_motion(target)
+        speed = math.sqrt(float(velocity @ velocity))
         moving = speed >= self.detector.min_approach_speed
-        if not active or (moving and self._turned(target.velocity / speed)):
-            self._new_direction(target.velocity / speed if active else None)
+        if not active or (moving and self._turned(velocity / speed)):
+            self._new_direction(velocity / speed if active else None)
         if not active:
             return False
         if self._stall_since == math.inf:
             if moving:
-                self._stall_begins(obs, target.velocity / speed, speed)
+                self._stall_begins(obs, velocity / speed, speed)
             return False  # not approaching anything, or the stall has just begun
         return self._stall_is_contact(obs, target, speed)
+
+    def _position_motion(self, target: TargetSample) -> np.ndarray:
+        """The planned velocity without its part along ``target.force_dir`` d when the
+        collision transition keeps the force loop there (Eq. 1's hybrid law, Eq. 8: d across
+        the motion, |cos| <= ``force_along_cos``; along the motion it drops the loop and the
+        target's motion is position-controlled). Along such a d the force loop presses with
+        the configured force and the tool does not follow the target's position, so neither
+        the target's motion nor the surface's reaction to the press belongs to a stall test.
+        Seed 237 of h4_collisions (issue #38 part 7): sliding up the blue wall (d = +y, the
+        target's y moving 1.5 cm in -y, |cos| 0.49) the wall's 5 N reaction, counted along u,
+        cancelled the 2 N of friction, the sliding resistance read 0, a friction stall 3 mm
+        behind the target passed the lag test (>= 0 / K* + 1 mm), was taken for the red top
+        (1.8σ from its belief, inside C), released its cap, and the red top was met at the
+        plan's 0.08 m/s (154 N)."""
+        v = target.velocity
+        d = target.force_dir
+        if d is None:
+            return v
+        along = float(v @ d)
+        if abs(along) > self.cfg.force_along_cos * math.sqrt(float(v @ v)):
+            return v  # the transition controller drops this force loop: position-controlled
+        return v - along * d
 
     def _stall_begins(self, obs: Observation, u: np.ndarray, speed: float) -> None:
         """Track the sliding resistance along u while the tool slides; start a stall when it

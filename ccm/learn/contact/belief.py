@@ -3,8 +3,12 @@
 Contacts are stationary (§3.3: A = I, B u = 0), so the Kalman predict step between trials
 only adds the process noise Q; the measurement is the end-effector position (forward
 kinematics) at the detected contact, H = I, noise R. The ellipsoid
-{x : (x - c)^T P^-1 (x - c) <= s^2} at sigma scale s is the region C of anticipated mode
-transition. :class:`ccm.learn.contact.contacts.ContactMap` holds one per expected contact.
+{x : (x - c)^T P^-1 (x - c) <= s^2} at sigma scale s is the belief's own uncertainty region
+(:meth:`ContactBelief.region_contains`); the controller's region C of anticipated mode
+transition is that of the innovation covariance P + R, where the next detected contact is
+expected (:mod:`ccm.control.adaptive.contact_regions`). Seed A §3.3 calls C the "covariance
+ellipsoid" and states no sigma scale. :class:`ccm.learn.contact.contacts.ContactMap` holds one
+belief per expected contact.
 """
 
 from __future__ import annotations
