@@ -12,7 +12,7 @@ import pytest
 
 from ccm.core.errors import ConfigError
 from ccm.core.filters import derivatives
-from ccm.metrics.contacts import contact_metrics
+from ccm.metrics.contacts import contact_metrics, impact_jerk
 from ccm.metrics.trial import EXTRA_METRICS, compute_extra_metrics
 from ccm.plots.run import write_figures
 from ccm.tasks.task import load_task
@@ -379,3 +379,43 @@ def test_switch_detection_delay_runs_from_the_friction_onset_to_the_mode_change(
     no_modes = {k: v for k, v in switch_log(0.62).items() if k not in ("mode", "mode_event")}
     out = contact_metrics(no_modes, 3, params)
     assert out["switch_onset_s_b"] is not None and out["switch_detect_delay_s_b"] is None
+
+
+def test_post_impact_jerk_is_the_rms_over_a_window_after_each_onset() -> None:
+    """Seed A §3.4.1's "jerk in motion after impact" (issue #38 item 5): ‖j‖ = 2 m/s³ with a
+    10 m/s³ burst in [0.30, 0.35) s. The window after an onset at 0.3 s (W = 0.2 s, both ends
+    in: 201 steps) holds 50 burst steps and 151 others; a second onset at 0.4 s overlaps it,
+    and the union [0.3, 0.6] s (301 steps) counts each step once."""
+    t = np.arange(1000) * DT
+    jerk = np.full(1000, 2.0)
+    jerk[300:350] = 10.0
+    out = impact_jerk(jerk, t, {"a": 0.3, "b": 0.4, "c": None}, 0.2)
+    assert out["impact_rms_jerk_mps3_a"] == pytest.approx(np.sqrt((50 * 100 + 151 * 4) / 201))
+    assert out["impact_rms_jerk_mps3_b"] == pytest.approx(2.0)
+    assert out["impact_rms_jerk_mps3_c"] is None
+    assert out["post_impact_rms_jerk_mps3"] == pytest.approx(np.sqrt((50 * 100 + 251 * 4) / 301))
+    assert impact_jerk(jerk, t, {"c": None}, 0.2) == {
+        "impact_rms_jerk_mps3_c": None, "post_impact_rms_jerk_mps3": None,
+    }  # fmt: skip
+
+
+def test_contact_metrics_report_the_jerk_after_the_impact() -> None:
+    """The drop log's stop at T_HIT: the jerk of the same filtered derivative as the
+    acceleration, RMS over [T_HIT, T_HIT + impact_jerk_window_s]."""
+    log = drop_log()
+    vel = np.column_stack([log["vel_x"], log["vel_y"], log["vel_z"]])
+    jerk = np.linalg.norm(derivatives(vel, DT, 30.0)[1], axis=1)
+    k = int(round(T_HIT / DT))
+    for window, steps in ((0.2, 201), (0.05, 51)):
+        params = {**PARAMS, "impact_jerk_window_s": window, "task_contacts": [TABLE]}
+        out = contact_metrics(log, 3, params)
+        expected = float(np.sqrt(np.mean(jerk[k : k + steps] ** 2)))
+        assert out["impact_rms_jerk_mps3_table"] == pytest.approx(expected)
+        assert out["post_impact_rms_jerk_mps3"] == pytest.approx(expected)
+    # the jerk decays after the stop: a longer window has a lower RMS
+    assert (
+        contact_metrics(log, 3, {**PARAMS, "task_contacts": [TABLE]})["post_impact_rms_jerk_mps3"]
+        < expected
+    )
+    with pytest.raises(ConfigError, match="impact_jerk_window_s"):
+        contact_metrics(log, 3, {**PARAMS, "impact_jerk_window_s": 0.0, "task_contacts": [TABLE]})

@@ -43,6 +43,9 @@ def test_h3_writes_data_metrics_and_figures(first: Path) -> None:
     assert set(conds) == {"joint_single", "joint_multi", "joint_high", *FORCE_ROWS, "igmm",
                           "persistence"}  # fmt: skip
     assert conds["joint_multi"]["joint_pred_rmse_rad"] > 0.0
+    # the training runs differ (h3.variability's start jitter): their spread is measured
+    assert conds["joint_single"]["train_spread_rad"] == 0.0  # one trial in this small run
+    assert conds["joint_multi"]["train_spread_rad"] > 1e-4
     assert 0.0 <= conds["task_long"]["coverage_95"] <= 1.0
     for n in (*FORCE_ROWS, "igmm", "persistence"):
         assert conds[n]["force_pred_rmse_N"] >= 0.0
@@ -64,6 +67,9 @@ def test_h3_writes_data_metrics_and_figures(first: Path) -> None:
     assert (
         info["joint_multi_train_s"] > 0.0 and info["task_delta_train_s"] > 0.0
     )  # wall-clock facts live outside the summary
+    # the cost claims' pairs (issue #38): the baseline and the incremental model, same process
+    assert min(info["task_train_s"], info["igmm_train_s"], info["task_long_predict_s"],
+               info["igmm_predict_s"]) > 0.0  # fmt: skip
 
 
 def test_reused_data_give_the_identical_summary(first: Path) -> None:
@@ -179,3 +185,40 @@ def test_forward_model_horizon_must_be_one_h3_step() -> None:
     _check_horizon(SimpleNamespace(horizon_s=0.01), 0.01 + 1e-12)
     with pytest.raises(ConfigError, match="h3.forward_model.horizon_s"):
         _check_horizon(SimpleNamespace(horizon_s=0.001), 0.01)
+
+
+def test_a_copy_of_the_trained_incremental_model_predicts_as_one_trained_anew() -> None:
+    """The IGMM is trained once and copied for each test trial (issue #38: ``igmm_train_s`` is
+    one training): the copy's predictions equal those of a model trained anew, bit for bit."""
+    import numpy as np
+
+    from ccm.analyses.h3 import _igmm, _igmm_copy, _igmm_train
+
+    rng = np.random.default_rng(0)
+
+    def trial(n: int = 300) -> dict:
+        t = np.arange(n) * 0.01
+        step = np.where(t[:, None] > 1.0, 0.5, 0.0)  # two regimes: several components
+        force = rng.normal(size=(n, 3)) * 0.3 + np.where(t[:, None] > 2.0, 20.0, 0.0)
+        return {"t": t, "velocity": rng.normal(size=(n, 3)) * 0.01 + step, "force": force}
+
+    h3 = {"forward_model": {"kind": "igmm", "horizon_s": 0.01, "igmm": {"max_components": 20},
+                            "feature_scale": [0.1, 1.0, 10.0, 1.0, 10.0, 1.0]}}  # fmt: skip
+    train, tests = [trial() for _ in range(3)], [trial(), trial()]
+    trained, t_train = _igmm_train(train, h3)
+    assert trained.n_components >= 2 and t_train > 0.0
+    for test in tests:
+        anew = _igmm(_igmm_train(train, h3)[0], test)[0]
+        copied = _igmm(_igmm_copy(trained, h3), test)[0]
+        np.testing.assert_array_equal(copied, anew)
+
+
+def test_train_spread_is_the_std_across_trials() -> None:
+    import numpy as np
+
+    from ccm.analyses.h3 import train_spread
+
+    q = np.zeros((5, 7))
+    trials = [{"q": q + 0.01}, {"q": q - 0.01}, {"q": np.zeros((6, 7))}]  # cut to 5 steps
+    assert train_spread(trials) == pytest.approx(np.std([0.01, -0.01, 0.0]))
+    assert train_spread(trials[:1]) == 0.0

@@ -75,3 +75,94 @@ def test_bad_collection_settings_name_the_key() -> None:
         collect(lambda o: None, BASE, [], 1, seed=0)  # type: ignore[arg-type,return-value]
     with pytest.raises(ConfigError, match="h3.trials_per_friction"):
         collect(lambda o: None, BASE, [0.1], 0, seed=0)  # type: ignore[arg-type,return-value]
+
+
+# --------------------------------------------------------------- issue #38 item 8: variability
+TABLE_WALL_START = np.array([0.48, -0.1, 0.15])  # configs/task/table_wall.yaml: task.start
+
+
+@pytest.fixture(scope="module")
+def composer():
+    from hydra import compose, initialize_config_dir
+
+    from ccm.cli import config_dir
+
+    with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="h3v"):
+        yield lambda o: compose("config", overrides=list(o))
+
+
+def _record(composer, variability=None, trials: int = 2) -> list[dict[str, np.ndarray]]:
+    """``trials`` runs at wall friction 0.6, 60 ms each (free space: the start matters)."""
+    return collect(composer, BASE, [0.6], trials, seed=0, max_time_s=0.06, variability=variability)
+
+
+def test_start_jitter_moves_each_run_by_its_drawn_offset(composer) -> None:
+    """Each run starts at task.start + its offset, the offset is start_jitter_m times a
+    standard normal draw of the trial's own stream, and its spread over trials is the
+    configured std (a value, not just 'differs')."""
+    from ccm.analyses.h3_data import STREAM, Variability
+    from ccm.experiment.components import trial_seed
+
+    v = Variability(start_jitter_m=0.01)
+    runs = _record(composer, v)
+    for k, tr in enumerate(runs, start=1):
+        s = trial_seed(0, k)
+        offset = v.start_offset(s)
+        np.testing.assert_array_equal(
+            offset, 0.01 * np.random.default_rng((s, STREAM, 0)).standard_normal(3)
+        )
+        assert np.linalg.norm(offset) > 1e-3  # a draw this small would make the check vacuous
+        np.testing.assert_allclose(tr["position"][0] - TABLE_WALL_START, offset, atol=2e-4)
+    # the two runs start apart by the difference of their offsets, not by the F/T noise
+    d = runs[1]["position"][0] - runs[0]["position"][0]
+    expect = v.start_offset(trial_seed(0, 2)) - v.start_offset(trial_seed(0, 1))
+    np.testing.assert_allclose(d, expect, atol=3e-4)
+    assert np.abs(runs[1]["q"][0] - runs[0]["q"][0]).max() > 1e-3  # rad: another posture
+    # the spread of the offsets over many trials is the configured std
+    draws = np.array([v.start_offset(trial_seed(0, k)) for k in range(1, 2001)])
+    assert draws.std() == pytest.approx(0.01, rel=0.05)
+    assert np.abs(draws.mean()) < 0.001
+
+
+def test_encoder_noise_adds_the_configured_std_to_the_recorded_joints_only(composer) -> None:
+    from ccm.analyses.h3_data import Variability
+
+    clean = _record(composer, None, trials=1)[0]
+    noisy = _record(
+        composer, Variability(encoder_noise_rad=1e-3, encoder_noise_rad_s=2e-2), trials=1
+    )[0]
+    dq, ddq = noisy["q"] - clean["q"], noisy["dq"] - clean["dq"]
+    assert dq.std() == pytest.approx(1e-3, rel=0.1)  # 60 x 7 draws
+    assert ddq.std() == pytest.approx(2e-2, rel=0.1)
+    for f in ("position", "velocity", "force", "mode"):  # the run itself is unchanged
+        np.testing.assert_array_equal(noisy[f], clean[f])
+
+
+def test_zero_variability_records_identical_runs(composer) -> None:
+    """Jitter 0 and noise 0: the runs start from the same state and are what the recorder gave
+    before variability existed (record_trial on components built once per friction)."""
+    from ccm.analyses.h3_data import WALL_FRICTION, Variability, record_trial
+    from ccm.experiment.components import build_components, trial_seed
+
+    runs = _record(composer, Variability())
+    np.testing.assert_array_equal(runs[0]["q"][0], runs[1]["q"][0])
+    np.testing.assert_array_equal(runs[0]["position"][0], runs[1]["position"][0])
+    np.testing.assert_allclose(runs[0]["position"][0], TABLE_WALL_START, atol=2e-4)
+    comp = build_components(composer([*BASE, f"{WALL_FRICTION}=0.6"]))
+    try:
+        for k, tr in enumerate(runs, start=1):
+            ref = record_trial(comp, trial_seed(0, k), 0.06)
+            for f in FIELDS:
+                np.testing.assert_array_equal(tr[f], ref[f])
+    finally:
+        comp.sim.close()
+
+
+def test_bad_variability_names_the_key() -> None:
+    from ccm.analyses.h3_data import Variability
+
+    with pytest.raises(ConfigError, match=r"h3.variability.start_jitter_m"):
+        Variability.from_config({"start_jitter_m": -0.001})
+    with pytest.raises(ConfigError, match=r"h3.variability.jitter"):
+        Variability.from_config({"jitter": 0.01})
+    assert Variability.from_config(None) == Variability()

@@ -10,7 +10,8 @@ the
    friction ``train_frictions`` (seed A: 0.1-0.7); ``medium_single``: medium, one friction
    (0.6; medium_multi's trials at that friction when it has them); ``high_multi``: high
    stiffness, the same frictions; ``medium_test`` / ``high_test``: the test friction (0.9).
-   Saved as ``data/<name>.npz``.
+   Saved as ``data/<name>.npz``. The recorded runs differ by ``h3.variability`` (a start
+   jitter, encoder noise; :class:`ccm.analyses.h3_data.Variability`) besides their F/T noise.
 2. **Variants** (seed A §4.4.1-4.4.3), on the data subsampled every ``subsample`` steps
    (one H3 step = ``subsample`` control periods, 10 ms), one row each:
 
@@ -35,7 +36,9 @@ the
    * ``persistence``: F̂_{t+1} = F_t, the naive reference every one-step predictor must beat.
 3. **Metrics** per variant, averaged over the test trials (:mod:`ccm.analyses.h3_scores`; "wall":
    the steps in contact with the wall, after the wall contact, at the unseen friction):
-   ``joint_pred_rmse_rad`` (all 7 joints), ``force_pred_rmse_N`` (on ‖F‖, the quantity
+   ``joint_pred_rmse_rad`` (all 7 joints), ``train_spread_rad`` (the joint rows' training
+   set: std across its trials of the joint positions, mean over time and joints; what seed A
+   §4.4.1 calls the variability in the training data), ``force_pred_rmse_N`` (on ‖F‖, the quantity
    every variant can be scored on; ``force_pred_rmse_wall_N`` after the wall contact),
    ``force_y_pred_rmse_N`` / ``force_y_pred_rmse_wall_N`` (F_y along the wall, Figs 13-14;
    every force-predicting variant), ``coverage_95`` (share of true values inside mean ±
@@ -43,21 +46,30 @@ the
    contact), the mean band width ``band_width_rad`` / ``band_width_N`` /
    ``band_width_y_wall_N`` and ``joint_lag_s`` (the delay that best aligns the true joint
    trajectory with the prediction; > 0: the truth lags, seed A Fig. 11). Training and
-   prediction times are wall-clock facts and go to ``run_info.json`` (``make bench``).
+   prediction times are wall-clock facts and go to ``run_info.json`` (``make bench``; the
+   cost claims compare the baseline's with the incremental model's: ``igmm_train_s`` is one
+   training on the training set, ``igmm_predict_s`` its predictions and online updates over
+   all test trials).
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from omegaconf import DictConfig
 
-from ccm.analyses.h3_data import collect, load_dataset, save_dataset, trial_duration_s
+from ccm.analyses.h3_data import (
+    Variability,
+    collect,
+    load_dataset,
+    save_dataset,
+    trial_duration_s,
+)
 from ccm.analyses.h3_scores import Y, along_latest, gp_force_scores, joint_scores, norm_force_scores
 from ccm.core.errors import ConfigError, check_bool, check_int_positive, config_block
 from ccm.core.records import write_json_atomic
@@ -67,7 +79,7 @@ from ccm.learn.mixtures.forward_model import N_STATE, make_forward_model
 _KEYS = (
     "controllers", "train_frictions", "trials_per_friction", "single_friction", "single_trials",
     "test_friction", "test_trials", "subsample", "baseline", "forward_model", "data_from",
-    "save_data", "max_time_s",
+    "save_data", "max_time_s", "variability",
 )  # fmt: skip
 Trial = Mapping[str, np.ndarray]
 
@@ -79,6 +91,7 @@ def _settings(cfg: DictConfig) -> dict[str, Any]:
     if not h3.get("train_frictions"):
         raise ConfigError("h3.train_frictions", "must list at least one wall friction")
     h3["save_data"] = check_bool("h3.save_data", h3.get("save_data", False))
+    h3["variability"] = Variability.from_config(h3.get("variability"))
     if cfg.experiment.get("fast", False):  # tests: one short trial per dataset
         fast_s = float(cfg.experiment.get("fast_time_s", 0.5))
         h3 |= {
@@ -135,16 +148,18 @@ def _datasets(h3: Mapping[str, Any], cfg: DictConfig, compose: Callable, out_dir
         subset = _single_friction_subset(name, out, h3)
         if subset is not None:  # the same controller and friction: reuse, do not re-record
             meta = {"controller": controller, "frictions": list(frictions), "seed": int(cfg.seed),
-                    "subset_of": "medium_multi"}  # fmt: skip
+                    "subset_of": "medium_multi",
+                    "variability": asdict(h3["variability"])}  # fmt: skip
             save(path, subset, meta)
             out[name] = subset
             continue
         trials = collect(
             compose, [f"controller={controller}"], frictions, n, int(cfg.seed),
-            first_trial=first, max_time_s=h3.get("max_time_s"),
+            first_trial=first, max_time_s=h3.get("max_time_s"), variability=h3["variability"],
         )  # fmt: skip
         first += len(trials)
-        meta = {"controller": controller, "frictions": list(frictions), "seed": int(cfg.seed)}
+        meta = {"controller": controller, "frictions": list(frictions), "seed": int(cfg.seed),
+                "variability": asdict(h3["variability"])}  # fmt: skip
         save(path, trials, meta)
         out[name] = trials
     return out
@@ -192,6 +207,15 @@ def _pairs(trials: Sequence[Trial], inputs: Callable[[Trial], np.ndarray], n_out
     return np.vstack(xs), np.vstack(ys), np.concatenate(ms)
 
 
+def train_spread(trials: Sequence[Trial]) -> float:
+    """The training set's variability [rad]: the std across its trials of the joint positions
+    at each step (trials cut to the shortest), averaged over the steps and the 7 joints; 0 for
+    one trial."""
+    n = min(len(tr["q"]) for tr in trials)
+    q = np.stack([np.asarray(tr["q"])[:n] for tr in trials])
+    return float(np.mean(np.std(q, axis=0)))
+
+
 def _joint(tr: Trial) -> np.ndarray:
     return np.hstack([tr["q"], tr["dq"]])
 
@@ -223,31 +247,46 @@ def _check_horizon(fm: Any, step_s: float) -> None:
         )
 
 
-def _igmm(train: Sequence[Trial], test: Trial, h3: Mapping) -> tuple[np.ndarray, float, float]:
-    """One-step ‖F‖ predictions of the incremental model on ``test`` (module docstring):
-    element k - 1 predicts ‖F_k‖, k = 1 .. n - 1."""
+def _igmm_states(tr: Trial) -> np.ndarray:
+    """The incremental model's states S = [‖ẋ‖, ‖ω‖ = 0, ‖F‖, ‖τ‖ = 0] (module docstring)."""
+    s = np.zeros((len(tr["t"]), N_STATE))
+    s[:, 0] = np.linalg.norm(tr["velocity"], axis=1)
+    s[:, 2] = np.linalg.norm(tr["force"], axis=1)
+    return s
+
+
+def _igmm_train(train: Sequence[Trial], h3: Mapping) -> tuple[Any, float]:
+    """The incremental model after streaming the training trials through it, and the time
+    that took [s]."""
     fm = make_forward_model(dict(h3.get("forward_model") or {}), "h3.forward_model")
-    _check_horizon(fm, float(np.median(np.diff(test["t"]))))
-
-    def states(tr: Trial) -> np.ndarray:
-        s = np.zeros((len(tr["t"]), N_STATE))
-        s[:, 0] = np.linalg.norm(tr["velocity"], axis=1)
-        s[:, 2] = np.linalg.norm(tr["force"], axis=1)
-        return s
-
+    _check_horizon(fm, float(np.median(np.diff(train[0]["t"]))))
     t0 = time.perf_counter()
     for tr in train:
-        s = states(tr)
+        s = _igmm_states(tr)
         for k in range(1, len(s)):
             fm.update(s[k - 1], s[k, 2:])
-    t_train = time.perf_counter() - t0
-    s = states(test)
+    return fm, time.perf_counter() - t0
+
+
+def _igmm_copy(trained: Any, h3: Mapping) -> Any:
+    """A fresh incremental model holding ``trained``'s learned state (its ``state_dict``): the
+    IGMM draws no random numbers, so it predicts what a model trained anew would
+    (tests/test_h3.py checks this)."""
+    fm = make_forward_model(dict(h3.get("forward_model") or {}), "h3.forward_model")
+    fm.load_state_dict(trained.state_dict())
+    return fm
+
+
+def _igmm(fm: Any, test: Trial) -> tuple[np.ndarray, float]:
+    """One-step ‖F‖ predictions of the trained incremental model ``fm`` on ``test``, revised
+    online (``fm`` is changed): element k - 1 predicts ‖F_k‖, k = 1 .. n - 1; and the time [s]."""
+    s = _igmm_states(test)
     pred = np.full(len(s) - 1, np.nan)
     t0 = time.perf_counter()
     for k in range(1, len(s)):
         pred[k - 1] = fm.predict(s[k - 1])[0]  # D̂_k from S_{k-1}, before D_k is seen
         fm.update(s[k - 1], s[k, 2:])  # then learn from it (incremental, seed A §3.1)
-    return pred, t_train, time.perf_counter() - t0
+    return pred, time.perf_counter() - t0
 
 
 @dataclass
@@ -286,13 +325,15 @@ def _joint_variants(
 ) -> None:
     """Rows of the joint-space long-horizon variants (seed A §4.4.1, Figs 11-12)."""
     for name, (train, test) in JOINT.items():
+        spread = train_spread(d[train])
         model, res.times[f"{name}_train_s"] = _fit(_pairs(d[train], _joint, 14), h3, seed)
         t0 = time.perf_counter()
         for i, tr in enumerate(d[test], start=1):
             x = _joint(tr)
             mean, std, _ = model.rollout(x[0], len(x) - 1)
             dt = float(np.median(np.diff(tr["t"])))
-            res.rows.append({"condition": name, "trial": i, **joint_scores(x[1:], mean, std, dt)})
+            scores = joint_scores(x[1:], mean, std, dt)
+            res.rows.append({"condition": name, "trial": i, **scores, "train_spread_rad": spread})
             res.curve(name, tr, x[1:, 0], mean[:, 0], std[:, 0])  # joint 1 (seed A Fig. 11)
         res.add_time(f"{name}_predict_s", t0)
 
@@ -322,10 +363,11 @@ def _task_variants(d: Mapping[str, Sequence[Trial]], h3: Mapping, seed: int, res
 
 
 def _incremental_variants(d: Mapping[str, Sequence[Trial]], h3: Mapping, res: _Results) -> None:
-    """Rows of ccm's incremental model and of persistence (Fig. 14b), one step ahead."""
+    """Rows of ccm's incremental model and of persistence (Fig. 14b), one step ahead. The
+    model is trained once; each test trial starts from a copy of it (:func:`_igmm_copy`)."""
+    trained, res.times["igmm_train_s"] = _igmm_train(d["medium_multi"], h3)
     for i, tr in enumerate(d["medium_test"], start=1):
-        pred, t_train, t_pred = _igmm(d["medium_multi"], tr, h3)
-        res.times["igmm_train_s"] = res.times.get("igmm_train_s", 0.0) + t_train
+        pred, t_pred = _igmm(_igmm_copy(trained, h3), tr)
         res.times["igmm_predict_s"] = res.times.get("igmm_predict_s", 0.0) + t_pred
         f, wall = tr["force"], tr["mode"][1:] == 2
         res.rows.append({"condition": "igmm", "trial": i, **norm_force_scores(pred, f, wall)})

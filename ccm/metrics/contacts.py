@@ -47,6 +47,14 @@ Definitions (one trial; step k is one control step, ``t[k]`` its time, dt the me
   acceleration from the measured velocity through :func:`ccm.metrics.trial.derivatives` (the same
   low-pass, ``lowpass_hz``, as ``peak_acc_mps2`` of every condition); ``peak_impact_acc_mps2``
   = the largest over the scored contacts. Steps outside the log are left out.
+* ``impact_rms_jerk_mps3_<name>`` = the RMS of ‖j[k]‖ over t[o_c] ≤ t[k] ≤ t[o_c] +
+  ``impact_jerk_window_s`` (W), with j the jerk from the same :func:`ccm.metrics.trial.derivatives`
+  as the acceleration; ``post_impact_rms_jerk_mps3`` = the RMS over the union of these windows
+  of every scored contact with an onset (a step in two windows counts once): seed A §3.4.1's
+  "jerk in motion after impact" (:func:`impact_jerk`). W defaults to 0.2 s, Eq. 10's T
+  (``anticipation.blend_s``): after the contact is made the transition controller hands back
+  to the base over T (§3.5.1), so K* acts on the motion for about that long after the impact
+  and the base controller alone after it; it is also the end of ``impact_acc_window_s``.
 * ``transition_time_s`` = dt × the number of steps with ``transition_alpha`` > 0 (the time the
   transition-phase controller is active); 0.0 when the column is absent (no contact handling).
 * ``n_collision_events`` = the number of runs of consecutive steps with ``collision_event`` > 0
@@ -110,7 +118,7 @@ import numpy as np
 from ccm.core.errors import ConfigError, check_finite, check_nonneg, check_positive
 from ccm.core.filters import derivatives
 
-__all__ = ["contact_metrics", "scored_contacts"]
+__all__ = ["contact_metrics", "impact_jerk", "scored_contacts"]
 
 
 def scored_contacts(task_contacts: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
@@ -174,6 +182,9 @@ def contact_metrics(
         ),
         "near": check_nonneg("metrics.impact_near_m", params.get("impact_near_m", 0.01)),
         "acc_window": _acc_window(params.get("impact_acc_window_s", (-0.05, 0.2))),
+        "jerk_window": check_positive(
+            "metrics.impact_jerk_window_s", params.get("impact_jerk_window_s", 0.2)
+        ),
         "lowpass_hz": check_positive("metrics.lowpass_hz", params.get("lowpass_hz")),
     }
     contacts = scored_contacts(params.get("task_contacts") or ())
@@ -204,8 +215,9 @@ def _impact_metrics(
     settings: Mapping[str, Any],
 ) -> dict[str, float | None]:
     """Per expected contact: the true normal force's peak in the window after its onset,
-    |F_peak − target|, the acceleration's peak around it and the onset time; and the peaks
-    over all contacts."""
+    |F_peak − target|, the acceleration's peak around it, the RMS jerk after it
+    (:func:`impact_jerk`) and the onset time; and the peaks and the pooled jerk over all
+    contacts."""
     out: dict[str, float | None] = {}
     impact_f: list[float] = []
     impact_a: list[float] = []
@@ -219,8 +231,8 @@ def _impact_metrics(
         )  # fmt: skip
         vel = np.column_stack([log[f"vel_{a}"] for a in axes])
         pos = np.column_stack([log[f"pos_{a}"] for a in axes])
-        acc, _ = derivatives(vel, dt, settings["lowpass_hz"])
-        acc_n = np.linalg.norm(acc, axis=1)
+        acc, jerk = derivatives(vel, dt, settings["lowpass_hz"])
+        acc_n, jerk_n = np.linalg.norm(acc, axis=1), np.linalg.norm(jerk, axis=1)
         indices = [int(c["segment_index"]) for c in contacts]
         window, (w0, w1) = settings["window"], settings["acc_window"]
         for i, c in enumerate(contacts):
@@ -243,8 +255,42 @@ def _impact_metrics(
             out[f"impact_force_error_N_{name}"] = error
             out[f"impact_acc_mps2_{name}"] = acc_peak
             out[f"contact_time_s_{name}"] = t_on
+        onsets = {str(c["name"]): out[f"contact_time_s_{c['name']}"] for c in contacts}
+        out.update(impact_jerk(jerk_n, t, onsets, settings["jerk_window"]))
+    else:
+        out["post_impact_rms_jerk_mps3"] = None
     out["peak_impact_force_N"] = max(impact_f) if impact_f else None
     out["peak_impact_acc_mps2"] = max(impact_a) if impact_a else None
+    return out
+
+
+def impact_jerk(
+    jerk_n: np.ndarray,
+    t: np.ndarray,
+    onsets: Mapping[str, float | None],
+    window: float,
+) -> dict[str, float | None]:
+    """RMS jerk after each impact (module docstring): ``impact_rms_jerk_mps3_<name>`` over
+    [onset, onset + ``window``] per contact (None without an onset) and
+    ``post_impact_rms_jerk_mps3`` over the union of those windows (None if no contact has one).
+
+    Args:
+        jerk_n: ‖jerk‖ per step [m/s³]; ``t``: the step times [s].
+        onsets: contact name -> onset time [s] or None.
+        window: W [s], the window's length after each onset.
+    """
+    out: dict[str, float | None] = {}
+    union = np.zeros(len(t), dtype=bool)
+    for name, t_on in onsets.items():
+        if t_on is None:
+            out[f"impact_rms_jerk_mps3_{name}"] = None
+            continue
+        inside = (t >= t_on - 1e-12) & (t <= t_on + window + 1e-12)
+        union |= inside
+        out[f"impact_rms_jerk_mps3_{name}"] = float(np.sqrt(np.mean(jerk_n[inside] ** 2)))
+    out["post_impact_rms_jerk_mps3"] = (
+        float(np.sqrt(np.mean(jerk_n[union] ** 2))) if union.any() else None
+    )
     return out
 
 
