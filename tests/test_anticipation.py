@@ -164,6 +164,18 @@ def test_quasi_static_contact_needs_a_stall_and_a_force_rise(pattern) -> None:
     assert fired[0] == pytest.approx(0.1 + 2 * c.detector.peak_window_s, abs=0.002)
 
 
+def press_step(
+    c: AnticipatoryAVIC, t: float, target: TargetSample, o: Observation, fired: list[float]
+) -> None:
+    """One step of the quasi-static contact rule on hand-made histories: record the target's
+    velocity and the force, and on a detected contact note ``t`` and release the window."""
+    c._vel_hist.append((t, target.velocity))  # noqa: SLF001
+    c._force_hist.append((t, o.force.copy()))  # noqa: SLF001
+    if c._pressed(o, target):  # noqa: SLF001
+        fired.append(t)
+        c._release(0, t)  # noqa: SLF001
+
+
 def _stall_run(c: AnticipatoryAVIC, breakaway_lag: float | None) -> list[float]:
     """Slide along +y at 0.03 m/s against 3 N of friction with a 5 mm lag, stall at 0.1 s
     while the target moves on (friction holding: the force stays at 3 N); with
@@ -181,11 +193,7 @@ def _stall_run(c: AnticipatoryAVIC, breakaway_lag: float | None) -> list[float]:
         target = TargetSample(t, np.array([0.0, y_target]), np.array([0.0, 0.03]), np.zeros(2),
                               np.zeros(1))  # fmt: skip
         o = obs_at(t, pos=(0.0, y), vel=(0.0, 0.03 if sliding else 0.0), force=(0.0, -3.0))
-        c._vel_hist.append((t, target.velocity))  # noqa: SLF001
-        c._force_hist.append((t, o.force.copy()))  # noqa: SLF001
-        if c._pressed(o, target):  # noqa: SLF001
-            fired.append(t)
-            c._release(0, t)  # noqa: SLF001
+        press_step(c, t, target, o, fired)
     return fired
 
 

@@ -18,6 +18,7 @@ from ccm.control.adaptive.anticipation import AnticipatoryAVIC
 from ccm.control.adaptive.contact_events import TransitionWindow
 from ccm.core.types import Observation, TargetSample
 from ccm.learn.contact.contacts import ContactMap
+from tests.test_anticipation import press_step
 
 
 def test_prior_draw_matches_the_belief_covariance() -> None:
@@ -66,11 +67,7 @@ def _slide_up_a_wall(c: AnticipatoryAVIC, target_stops: float) -> list[float]:
         z = np.zeros(1)
         o = Observation(t, np.array([0.0, y]), z, np.array([0.0, 0.03 * u[1] if t < 0.1 else 0.0]),
                         z.copy(), np.array([-5.0, -2.0]), z.copy())  # fmt: skip
-        c._vel_hist.append((t, target.velocity))  # noqa: SLF001
-        c._force_hist.append((t, o.force.copy()))  # noqa: SLF001
-        if c._pressed(o, target):  # noqa: SLF001
-            fired.append(t)
-            c._release(0, t)  # noqa: SLF001
+        press_step(c, t, target, o, fired)
     return fired
 
 

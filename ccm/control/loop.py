@@ -120,6 +120,8 @@ def _is_matrix(x: object) -> bool:
 
 def mean_gain(k: np.ndarray | float) -> float:
     """A gain's logged value: its axis mean (the diagonal's mean for an (n, n) matrix)."""
+    if isinstance(k, float):  # np.float64 too: the planar per-step path, no array calls
+        return float(k)
     a = np.asarray(k, dtype=float)
     return float(np.mean(np.diagonal(a) if a.ndim == 2 else a))
 
