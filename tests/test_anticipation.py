@@ -307,8 +307,8 @@ def test_collision_transition_keeps_the_press_across_the_motion(pattern) -> None
 
 
 def test_detected_contact_position_carries_the_stated_noise(pattern) -> None:
-    """Item 4 of issue #17: a detection measures the contact position with
-    ``detection_noise_std`` per axis, not exact kinematics; seeded, so reproducible."""
+    """``detection_noise_std`` (off in the paper configs since issue #38 item 3) adds that
+    noise per axis to a detection's measured position; seeded, so reproducible."""
     exact = make()
     exact.prepare(pattern, CONTACT, np.random.default_rng(0))
     p = np.array([0.01, 0.08])

@@ -74,7 +74,13 @@ gives None for all of these), for every contact of the task, matched by name:
 * ``approach_velocity_mps_<name>`` / ``measured_impact_force_N_<name>``: for a collision
   whose Eq. 9 model was updated this trial, the commanded approach speed and the impact force
   F_m the controller measured (its F/T sensor, not the truth);
-* ``n_contacts_learned``: contacts the controller added itself (first seen in a trial).
+* ``n_contacts_learned``: contacts the controller added itself (first seen in a trial);
+* ``detection_error_m_<name>`` = ‖z − the task's nominal position‖ for the first contact
+  position z the controller measured for that contact in the trial (the Kalman filter's
+  measurement, seed A §3.3; issue #38 item 3: the detection chain's own error, from the F/T
+  noise, the onset test's latency, the contact's compliance and the tool's tracking error),
+  and ``detection_depth_m_<name>`` = its part along −n_c (how far past the nominal surface
+  the tool point was at the detected onset; negative short of it). None when not measured.
 
 Impact-less transitions (seed A §4.5.2, Figs 19-20), for every task contact of kind
 ``impactless`` (its position: where the tool point crosses onto the new surface):
@@ -318,9 +324,26 @@ def _belief_metrics(
         out[f"contact_prior_std_m_{name}"] = std0
         out[f"approach_velocity_mps_{name}"] = v
         out[f"measured_impact_force_N_{name}"] = f
+        out.update(_detection_error(name, c, b))
     learned = [b for b in beliefs.values() if b.get("source") == "observed"]
     out["n_contacts_learned"] = float(len(learned)) if report and "contacts" in report else None
     return out
+
+
+def _detection_error(
+    name: str, contact: Mapping[str, Any], belief: Mapping[str, Any] | None
+) -> dict[str, float | None]:
+    """``detection_error_m_<name>`` and ``detection_depth_m_<name>`` of the module docstring,
+    from the first position the controller measured for this contact in the trial."""
+    z = (belief or {}).get("measured") or []
+    err = depth = None
+    if z:
+        e = np.asarray(z[0], dtype=float) - np.asarray(contact["position"], dtype=float)
+        err = float(np.linalg.norm(e))
+        if contact.get("normal") is not None:
+            n = np.asarray(contact["normal"], dtype=float)
+            depth = float(-e @ n / np.linalg.norm(n))
+    return {f"detection_error_m_{name}": err, f"detection_depth_m_{name}": depth}
 
 
 def contact_table(trials: Sequence[Mapping[str, Any]]) -> str | None:
