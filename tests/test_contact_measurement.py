@@ -16,7 +16,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ccm.control.adaptive.anticipation import AnticipatoryAVIC
 from ccm.core.errors import to_plain
+from ccm.learn.contact.contacts import ContactMap
 from ccm.metrics.contacts import contact_metrics
 
 
@@ -66,3 +68,65 @@ def test_table_measurement_is_the_tool_position_at_the_detected_onset(composer: 
     assert out["detection_error_m_table"] == pytest.approx(
         float(np.linalg.norm(z - np.array(cfg.task.contacts[0].position))), abs=1e-12
     )
+
+
+# --- the target's lead on the tool, where p_c is found (issue #38 item 3) ----------------
+
+#: a contact the slide of slide_surfaces_2d meets: the target slides at y = 0.02 (5 mm into
+#: the floor), the tool on the floor at y = 0.025; x 0.40
+WALL = [{"name": "wall", "position": [0.40, 0.025], "kind": "collision"}]
+
+
+def _tight(**extra: Any) -> Any:
+    """The anticipating controller with a millimetre region: prior std 0.2 mm, R 0.1 mm,
+    no process noise, C at 3 sigma."""
+    settings = {
+        "init_noise_std": 1e-12,
+        "init_std": 0.0002,
+        "sigma_scale": 3.0,
+        "map": {"measurement_noise_std": 0.0001, "process_noise_std": 0.0},
+        **extra,
+    }
+    c = AnticipatoryAVIC(anticipation=settings, k_free=300.0, k_max=3000.0)
+    c.reset(2, 0.001)
+    return c  # fmt: skip
+
+
+@pytest.fixture
+def slide(composer: Any) -> Any:
+    from ccm.tasks.task import load_task
+
+    return load_task(composer(["task=slide_surfaces_2d"]).task, 0.001).pattern
+
+
+def test_the_lead_is_the_target_offset_across_the_motion() -> None:
+    """A collision measured at z = (0.40, 0.025) while the target was at (0.41, 0.02), moving
+    along +x: the lead is (0, -0.005), the press into the floor; the 1 cm lag along the motion
+    is left out. An inverted offset (z - target) would give +0.005."""
+    c = _tight()
+    c.contact_map = ContactMap.from_config(WALL, np.random.default_rng(0), dim=2, init_std=0.001)
+    z = np.array([0.40, 0.025])
+    c._record(0, z, (np.array([0.41, 0.02]), np.array([0.05, 0.0])))  # noqa: SLF001
+    np.testing.assert_allclose(c.contact_map.contacts[0].lead, [0.0, -0.005], atol=1e-15)
+    state = c.contact_map.state_dict()
+    assert state["contacts"][0]["lead"] == pytest.approx([0.0, -0.005])
+    back = ContactMap.from_state_dict(state)
+    np.testing.assert_allclose(back.contacts[0].lead, [0.0, -0.005], atol=1e-15)
+
+
+def test_p_c_is_found_on_the_path_shifted_by_the_lead(slide: Any) -> None:
+    """With C 0.67 mm wide (3 sigma) the target path, 5 mm below the contact, never enters C:
+    no slow-down. With the measured lead (0, -0.005) the pass begins where the target's x is
+    the contact's x less C's radius along x, 3 sqrt(P + R) (to the plan's sampling)."""
+    c = _tight()
+    c.prepare(slide, WALL, np.random.default_rng(0))
+    assert c._slow == []  # noqa: SLF001 - P passes beside the millimetre C
+    c = _tight()
+    c.prepare(slide, WALL, np.random.default_rng(0))
+    c.contact_map.contacts[0].lead = np.array([0.0, -0.005])
+    c.prepare(slide, WALL, np.random.default_rng(0))
+    ((_, phi_c, _, _),) = c._slow  # noqa: SLF001
+    radius = 3.0 * np.sqrt(0.0002**2 + 0.0001**2)
+    x_c = float(slide.sample(phi_c).position[0])
+    step = 0.26 * c.cfg.path_dt  # the slide's top speed x the plan's sampling
+    assert 0.40 - radius <= x_c <= 0.40 - radius + step  # the first plan sample inside C

@@ -135,6 +135,8 @@ class AnticipatoryAVIC(ContactEvents, Controller):
             maxlen=max(2, round(keep / control_dt))
         )
         self._force_hist: deque[tuple[float, np.ndarray]] = deque(maxlen=self._vel_hist.maxlen)
+        self._target_hist: deque[tuple[float, np.ndarray]] = deque(maxlen=self._vel_hist.maxlen)
+        self._trigger_target: tuple[np.ndarray, np.ndarray] | None = None
         self._resist_hist: deque[tuple[float, float]] = deque(maxlen=self._vel_hist.maxlen)
         self._new_direction(None)  # the stall and sliding-resistance state (ContactEvents)
         self._ant = self._ant_signals(0.0, 0.0)
@@ -226,9 +228,11 @@ class AnticipatoryAVIC(ContactEvents, Controller):
         event = self.detector.update_obs(obs)
         self._vel_hist.append((obs.t, target.velocity))
         self._force_hist.append((obs.t, obs.force.copy()))
+        self._target_hist.append((obs.t, target.position))
         base = self.base
         if base.signal("mode_trigger") == 1.0:
             self._trigger_pos = obs.position.copy()
+            self._trigger_target = (target.position, target.velocity)
         cmd = base.step(obs, target)
         self._impactless_event(obs)
         hit = self._contact_made(obs, target, event)
@@ -253,7 +257,9 @@ class AnticipatoryAVIC(ContactEvents, Controller):
                 z, "collision", **measured,
                 expected=self._in_sequence(z), expected_gate=self.cfg.association_gate,
             )  # fmt: skip
-            self._z.setdefault(ev.index, []).append(z.tolist())
+            t_on = event.onset_time
+            at = (self._history(self._target_hist, t_on), self._commanded_velocity(t_on))
+            self._record(ev.index, z, at)
             hit = 1.0
             self._release(ev.index, obs.t)
         elif self.contact_map is not None and self._pressed(obs, target):
@@ -270,7 +276,7 @@ class AnticipatoryAVIC(ContactEvents, Controller):
                     z, "collision", v_used=self._stall_speed,
                     f_measured=self._stall_peak, expected=expected, expected_gate=gate,
                 )  # fmt: skip
-                self._z.setdefault(ev.index, []).append(z.tolist())
+                self._record(ev.index, z, (target.position, target.velocity))
                 hit = 2.0
                 self._release(ev.index, obs.t)
         return hit
@@ -322,7 +328,7 @@ class AnticipatoryAVIC(ContactEvents, Controller):
                 ev = self.contact_map.observe(
                     z, "impactless", expected=self._expected(obs.t, "impactless")
                 )
-                self._z.setdefault(ev.index, []).append(z.tolist())
+                self._record(ev.index, z, self._trigger_target)
                 for w in self._windows:
                     if w.contact == ev.index and not w.done:
                         w.release, w.done = min(w.release, obs.t), True
@@ -343,6 +349,27 @@ class AnticipatoryAVIC(ContactEvents, Controller):
         if self.cfg.detection_noise_std > 0.0 and self._meas_rng is not None:
             z = z + self._meas_rng.normal(0.0, self.cfg.detection_noise_std, size=z.shape)
         return z
+
+    def _record(
+        self, contact: int, z: np.ndarray, target: tuple[np.ndarray, np.ndarray] | None
+    ) -> None:
+        """Keep a measurement z for :meth:`report`, and the contact's ``lead``: the target's
+        offset from z across the planned motion when z was taken (``target`` = the target's
+        position and velocity then). It is where the target runs when the tool meets the
+        contact, which the next trial's p_c is found with
+        (:func:`ccm.control.adaptive.replan.plan_passes`). Along the motion the offset is the
+        tool's lag, which depends on the stiffness acting then (K* after a slow-down, the
+        base's K before one: carried over, it made every other trial meet the wall at 0.06
+        m/s, measured); it is left out, so p_c comes early rather than late."""
+        self._z.setdefault(contact, []).append(z.tolist())
+        if target is None or self.contact_map is None:
+            return
+        lead = np.asarray(target[0], dtype=float) - z
+        v = np.asarray(target[1], dtype=float)
+        speed = float(np.linalg.norm(v))
+        if speed > 1e-9:
+            lead = lead - (lead @ v) * v / speed**2
+        self.contact_map.contacts[contact].lead = lead
 
     def _release(self, contact: int, t: float) -> None:
         """Contact made: leave the transition controller and return to the plan's speed."""

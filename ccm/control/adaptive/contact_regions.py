@@ -10,7 +10,9 @@ experiments (issue #17 item 2). It once stood in for the tool's lag behind its t
 the stiffness falls to K*, stalled by friction after the slow-down, and the old stall test took
 that for the contact 2 cm short of h4_contact_learning's obstacle (60 N when the plan's speed
 came back; seed 0, trial 2). The stall test now asks for a lag beyond the sliding resistance
-(:meth:`ccm.control.adaptive.contact_events.ContactEvents._pressed`).
+(:meth:`ccm.control.adaptive.contact_events.ContactEvents._pressed`). The target's offset
+from the tool across the motion (its designed press into the surfaces) is a contact's
+``lead``, by which the caller shifts the path (:func:`ccm.control.adaptive.replan.plan_passes`).
 
 A *pass* is a maximal run of plan samples inside C, from where the path enters C to where it
 leaves it. A path may enter C several times (a wide early belief covers earlier stretches of
@@ -102,7 +104,8 @@ def to_segment_end(p: Pass, segment: np.ndarray) -> Pass:
     """``p`` with its exit moved to the end of the plan segment in which the path left C.
 
     The tool trails its target: with K* = 300 N/m and 3.5 N of friction along a wall, by
-    ~1.2 cm, about the half-width of a converged region (3σ of P + R ≈ 1.6 cm). The target
+    ~1.2 cm, more than the half-width of a converged region (3σ of P + R: ≈ 1.6 cm with a
+    5 mm R, ≈ 3 mm with the measured 0.11 mm R of issue #38). The target
     then leaves C before the tool reaches the contact, and the plan's speed came back for the
     impact (h4_contact_learning's obstacle, 16-101 N in trials 3-5 of seed 0, measured). The
     plans end their approach segments inside the surface they meet, so the cap holds until

@@ -44,11 +44,21 @@ def plan_passes(
     contacts: Sequence[Any], pattern: Any, path_dt: float, sigma_scale: float, min_region: float
 ) -> tuple[list[Slow], list[Crossing]]:
     """The collision passes and impact-less crossings of ``pattern`` through the regions C
-    of the map's ``contacts``, each list sorted by where C begins."""
+    of the map's ``contacts``, each list sorted by where C begins.
+
+    Seed A §3.5.1 puts p_c where "the robot crosses" C. The target leads the tool: by its lag,
+    and by the plan's designed offsets into the surfaces it presses on (1 cm into a wall it
+    slides along). A contact whose ``lead`` (target − tool at its last measurement) is known
+    is therefore tested on P − lead, where the tool is expected when the target is on P;
+    before any measurement on P itself (issue #38 item 3: once C shrinks to millimetres, P
+    passes beside it)."""
     ts = np.arange(0.0, pattern.duration + 0.5 * path_dt, path_dt)
     path = pattern.sample_many(ts)
     pos, speed = path["position"], np.linalg.norm(path["velocity"], axis=1)
-    passes = [approach_passes(c.belief, pos, sigma_scale, min_region) for c in contacts]
+    passes = [
+        approach_passes(c.belief, pos if c.lead is None else pos - c.lead, sigma_scale, min_region)
+        for c in contacts
+    ]
     ordered = [i for i, c in enumerate(contacts) if c.kind == "collision" and c.source == "config"]
     for i, ps in zip(ordered, in_plan_order([passes[i] for i in ordered]), strict=True):
         passes[i] = ps

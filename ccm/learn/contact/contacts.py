@@ -44,7 +44,9 @@ SOURCES: tuple[str, ...] = ("config", "observed")
 class Contact:
     """One contact of a :class:`ContactMap`: its position ``belief``, ``kind`` (``"collision"``
     or ``"impactless"``, §3.3), ``name``, ``approach`` model (collisions only), ``source``
-    (``"config"`` or ``"observed"``) and whether it was measured in the current trial."""
+    (``"config"`` or ``"observed"``), whether it was measured in the current trial and
+    ``lead``: the controller's target minus the measured contact position at the last
+    measurement [m] (None before one), set by the controller that plans with it."""
 
     belief: ContactBelief
     kind: str
@@ -52,6 +54,7 @@ class Contact:
     approach: ApproachVelocityModel | None
     source: str = "config"
     updated_this_trial: bool = False
+    lead: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -80,8 +83,9 @@ class ContactMap:
         dim: Task-space dimension, 2 or 3.
         process_noise_std: Per-trial random walk of a contact, Q = diag(std^2), m, scalar or
             per axis (chosen 0.001: keeps P from collapsing, so a drift is still followed).
-        measurement_noise_std: R = diag(std^2), m (chosen 0.005: forward-kinematics error plus
-            the travel between touch and detection at approach speeds).
+        measurement_noise_std: R = diag(std^2), m (default 0.005, a generic forward-kinematics
+            error; the H4 configs use the detection chain's measured 0.11 mm,
+            configs/controller/avic_anticipation.yaml).
         new_contact_std: Std of a contact first seen in a trial, m (chosen 0.05: half the
             vision error of Table 1, wide enough for the detection delay of impact-less
             transitions).
@@ -270,6 +274,7 @@ class ContactMap:
             {n: getattr(c, n) for n in fields}
             | {"mean": c.belief.mean.tolist(), "cov": c.belief.cov.tolist()}
             | {"n_updates": c.belief.n_updates, "approach": c.approach and c.approach.state_dict()}
+            | {"lead": None if c.lead is None else c.lead.tolist()}
             for c in self.contacts
         ]
         settings["approach"] = dict(self.approach_params)
@@ -303,7 +308,11 @@ class ContactMap:
                     approach = ApproachVelocityModel.from_state_dict(approach, akey)
                 source = check_choice(f"{k}.source", rec["source"], SOURCES)
                 flag = bool(rec["updated_this_trial"])
-                out.contacts.append(Contact(belief, kind, str(rec["name"]), approach, source, flag))
+                lead = rec.get("lead")  # absent in maps saved before issue #38
+                lead = None if lead is None else check_vector(f"{k}.lead", lead, out.dim)
+                out.contacts.append(
+                    Contact(belief, kind, str(rec["name"]), approach, source, flag, lead)
+                )
         except ConfigError as e:
             raise ConfigError(key, f"invalid contact map: {e}") from None
         except (KeyError, TypeError, ValueError, AttributeError) as e:
