@@ -245,10 +245,10 @@ def cmd_run(args: Sequence[str]) -> int:
 
 
 def _run_app(args: list[str]) -> int:
-    """Precheck the overrides (exit 2 on a bad one), then run the Hydra app."""
-    import hydra
-
+    """Precheck the overrides (exit 2 on a bad one), then run the Hydra app; the user's config
+    directories are searched first throughout (:mod:`ccm.experiment.user_configs`)."""
     from ccm.core.errors import ConfigError
+    from ccm.experiment import run_record
 
     multirun = "-m" in args or "--multirun" in args
     flags = {"-m", "--multirun"}
@@ -261,10 +261,17 @@ def _run_app(args: list[str]) -> int:
                                          user_configs.SEARCHPATH)]  # fmt: skip
     except ConfigError as exc:
         return _fail(str(exc), EXIT_CONFIG)
-    if not (set(args) & info_flags):
-        err = precheck(overrides, multirun, dirs)
-        if err:
-            return _fail(err, EXIT_CONFIG)
+    with run_record.scoped_env(user_configs.DIRS_ENV, os.pathsep.join(map(str, dirs))):
+        if not (set(args) & info_flags):
+            err = precheck(overrides, multirun, dirs)
+            if err:
+                return _fail(err, EXIT_CONFIG)
+        return _hydra_app(args)
+
+
+def _hydra_app(args: list[str]) -> int:
+    """Run the Hydra app on ``args``; 1 if a job of a sweep failed."""
+    import hydra
 
     config_path = str(user_configs.config_dir())
     app = hydra.main(version_base="1.3", config_path=config_path, config_name="config")(_job)

@@ -191,6 +191,38 @@ def test_another_config_is_refused_and_force_moves_the_old_record_aside(
     assert json.loads((run / "summary.json").read_text())["status"] == "ok"
 
 
+def test_a_folder_ccm_did_not_make_is_refused_and_force_moves_it_aside(
+    tmp_path: Path, in_process
+) -> None:  # noqa: ANN001
+    """Issue #39: a run into an existing folder holding someone's summary.json and figures/
+    overwrote them and exited 0; now it is refused with one line, and --force moves it aside."""
+    run = tmp_path / "theirs"
+    (run / "figures").mkdir(parents=True)
+    (run / "summary.json").write_text('{"mine": 1}\n')
+    (run / "figures" / "plot.png").write_bytes(b"not ccm's")
+    mine = _snapshot(run)
+    base = ["run", "experiment=smoke", *FAST, f"hydra.run.dir={run}"]
+    code, _, err = in_process(base)
+    assert code == cli.EXIT_CONFIG
+    assert _lines(err) == [
+        f"ccm: error: run directory {run} holds files that are not a ccm run record (figures, "
+        "summary.json); run again with --force to move it aside and start over, or choose "
+        "another directory"
+    ]
+    after = _snapshot(run)
+    after.pop("cli.log", None)  # Hydra's job log, opened before any ccm code runs
+    assert after == mine
+
+    code, out, err = in_process(["run", "--force", *base[1:]])
+    assert code == 0, err
+    (aside,) = tmp_path.glob("theirs.replaced-*")
+    assert f"moved aside -> {aside}" in out
+    kept = _snapshot(aside)
+    kept.pop("cli.log", None)
+    assert kept == mine
+    assert json.loads((run / "summary.json").read_text())["status"] == "ok"
+
+
 def test_a_resumed_sweep_refuses_its_stale_jobs(tmp_path: Path, in_process) -> None:  # noqa: ANN001
     """A sweep resumed after its config changed (here: a key left out of the job names, as an
     edited config file is) is refused in one line before any job starts (exit 2, records and

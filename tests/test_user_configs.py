@@ -65,3 +65,53 @@ def test_lab_options_need_the_lab_dir(lab: Path, capsys: pytest.CaptureFixture) 
     )
     assert main(["run", "--config-dir"]) == 2
     assert "--config-dir: needs a directory" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("how", ["--config-dir", "searchpath"])
+def test_a_lab_file_of_the_packages_name_shadows_it(tmp_path: Path, how: str) -> None:
+    """Issue #39: Hydra searched the package's configs first, so a lab's ``task/smoke.yaml``
+    was listed as shadowing the package's but the run used the package's."""
+    lab = tmp_path / "lab"
+    (lab / "task").mkdir(parents=True)
+    task = (config_dir() / "task" / "smoke.yaml").read_text(encoding="utf-8")
+    assert "stiffness: 40.0" in task
+    (lab / "task" / "smoke.yaml").write_text(task.replace("stiffness: 40.0", "stiffness: 41.5"))
+    out = tmp_path / "run"
+    where = [f"hydra.searchpath=[file://{lab}]"] if how == "searchpath" else [how, str(lab)]
+    fast = ["experiment.fast=true", "experiment.figures=false"]
+    assert main(["run", *where, "experiment=smoke", *fast, f"hydra.run.dir={out}"]) == 0
+    saved = (out / ".hydra" / "config.yaml").read_text(encoding="utf-8")
+    assert "stiffness: 41.5" in saved and "stiffness: 40.0" not in saved
+
+
+def test_a_broken_lab_file_of_the_packages_name_is_not_ignored(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    lab = tmp_path / "lab"
+    (lab / "task").mkdir(parents=True)
+    (lab / "task" / "smoke.yaml").write_text("name: smoke\npattern: [\n")
+    out = tmp_path / "run"
+    assert main(["run", "-cd", str(lab), "experiment=smoke", f"hydra.run.dir={out}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "smoke.yaml" in err[0] and "YAML" in err[0], err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("condition", "expected"),
+    [
+        (["controller=fixed_impedance_high"], 800.0),  # the command line beats the option's value
+        (["controller=fixed_impedance_high", "controller.stiffness=5000"], 5000.0),  # the key's own
+    ],
+)
+def test_command_line_and_condition_precedence(condition: list[str], expected: float) -> None:
+    """Issue #39, as the README states it: a command-line key overrides the values of the config
+    option a condition selects (an ablation such as ``controller.loop.inertia=nominal`` reaches
+    every condition), and a key the condition sets itself overrides the command line."""
+    from hydra import initialize_config_dir
+
+    from ccm.experiment.precheck import compose_extra
+
+    with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="test"):
+        cfg = compose_extra(["experiment=smoke", "controller.stiffness=800"], condition, dirs=[])
+    assert float(cfg.controller.stiffness) == expected

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -42,6 +43,7 @@ from omegaconf import DictConfig
 
 from ccm.control.registry import make_controller
 from ccm.core.errors import ConfigError, SimulationDiverged, to_plain
+from ccm.core.records import atomic_path
 from ccm.core.types import TargetSample
 from ccm.experiment.components import check_dims
 from ccm.sim import backend, make_sim
@@ -50,7 +52,9 @@ from ccm.tasks.task import load_task
 
 AXES = ("x", "y", "z")
 
-USAGE = "usage: ccm demo TASK --out FILE.csv|FILE.parquet [--seed N] [--rate HZ] [OVERRIDES…]"
+USAGE = (
+    "usage: ccm demo TASK --out FILE.csv|FILE.parquet [--force] [--seed N] [--rate HZ] [OVERRIDES…]"
+)
 
 #: Goal-sequence spacing [s]: the hand's intent updated at 100 Hz, smooth to the 1 kg tool
 #: (chosen).
@@ -167,11 +171,36 @@ def write_demo(columns: dict[str, np.ndarray], out: Path) -> None:
     import pandas as pd
 
     frame = pd.DataFrame(columns)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if out.suffix.lower() == ".csv":
-        frame.to_csv(out, index=False, float_format="%.9g")
-    else:
-        frame.to_parquet(out, index=False)
+    try:
+        with atomic_path(out) as tmp:  # a killed write leaves no half file under the name
+            if out.suffix.lower() == ".csv":
+                frame.to_csv(tmp, index=False, float_format="%.9g")
+            else:
+                frame.to_parquet(tmp, index=False)
+    except OSError as exc:
+        raise ConfigError("--out", f"{out}: cannot write ({exc.strerror or exc})") from None
+
+
+def check_out(out: Path, force: bool) -> None:
+    """Refuse ``--out`` before anything is simulated (issue #39): a directory, an existing
+    file without ``--force``, or a place that cannot be written; each as one line."""
+    if out.suffix.lower() not in (".csv", ".parquet", ".pq"):
+        raise ConfigError("--out", f"{out}: must end in .csv or .parquet")
+    if out.is_dir():
+        raise ConfigError(
+            "--out", f"{out} is a directory; give a file name ending in .csv or .parquet"
+        )
+    if out.exists() and not force:
+        raise ConfigError(
+            "--out", f"{out} exists; pass --force to replace it, or choose another name"
+        )
+    if out.exists() and not out.is_file():
+        raise ConfigError("--out", f"{out} is not a regular file; choose another name")
+    parent = out.parent
+    while not parent.exists():  # the nearest folder that exists must take the new ones
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise ConfigError("--out", f"{out}: cannot write in {parent}; choose a writable place")
 
 
 def main(args: Sequence[str]) -> int:
@@ -184,6 +213,7 @@ def main(args: Sequence[str]) -> int:
     parser.add_argument("task", nargs="?")
     parser.add_argument("--out")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--force", action="store_true")
     parser.add_argument("--rate", type=float)
     try:
         ns, rest = parser.parse_known_args(list(args))
@@ -194,16 +224,17 @@ def main(args: Sequence[str]) -> int:
         problem = f"unexpected {bad[0]!r}" if bad else "TASK and --out FILE are required"
         raise ConfigError("demo", f"{problem}; {USAGE}")
     out = Path(ns.out)
-    if out.suffix.lower() not in (".csv", ".parquet", ".pq"):
-        raise ConfigError("--out", f"{out}: must end in .csv or .parquet")
+    check_out(out, ns.force)
+    if ns.seed < 0:
+        raise ConfigError("--seed", f"must be an integer >= 0, got {ns.seed}")
     cfg = compose_demo(ns.task, rest)
-    columns = record_demo(cfg, ns.seed)
-    if ns.rate is not None:  # a smaller file: every k-th control step
+    every = 1  # a smaller file for --rate: every k-th control step
+    if ns.rate is not None:
         control_dt = float(cfg.sim.dt) * int(cfg.sim.control_decimation)
         if not 0.0 < ns.rate <= 1.0 / control_dt:
             raise ConfigError("--rate", f"must lie in (0, {1.0 / control_dt:g}] Hz, got {ns.rate}")
         every = max(1, round(1.0 / (ns.rate * control_dt)))
-        columns = {name: values[::every] for name, values in columns.items()}
+    columns = {name: values[::every] for name, values in record_demo(cfg, ns.seed).items()}
     write_demo(columns, out)
     t = columns["t"]
     print(f"ccm: demonstration of {ns.task} ({len(t)} rows, {t[-1]:.3g} s) -> {out}")

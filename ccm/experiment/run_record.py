@@ -8,8 +8,9 @@ Every run (a single run, or each job of a sweep) opens its run directory with
    second run into the directory is refused (:class:`RecordRefused`) and writes nothing;
 2. compares the SHA-256 of the composed, resolved config (:func:`config_digest`) with the one
    the directory's record was made with (``config.sha256``; for a record from before the hash,
-   its ``.hydra/config.yaml``). Another config is refused, unless ``force``, which moves the old
-   record aside to ``<dir>.replaced-<timestamp>`` (nothing is deleted) and starts over;
+   its ``.hydra/config.yaml``). Another config is refused, and so is a directory that holds
+   files but no ccm record (issue #39), unless ``force``, which moves the old contents aside
+   to ``<dir>.replaced-<timestamp>`` (nothing is deleted) and starts over;
 3. removes the temporary files that killed atomic writes left
 (:func:`ccm.core.records.atomic_path`).
 
@@ -162,18 +163,37 @@ def open_record(run_dir: Path, cfg: DictConfig, force: bool = False) -> Iterator
         digest = config_digest(cfg)
         stored = stored_digest(run_dir, cfg)
         replaced = None
-        if stored is not None and (force or stored != digest):
+        foreign = _foreign_files(run_dir) if stored is None else []
+        if foreign or (stored is not None and (force or stored != digest)):
             if not force:
-                raise RecordRefused(
-                    f"run directory {run_dir} holds a run of another config ({HASH_NAME} "
-                    "differs); run again with --force to move it aside and start over, or "
-                    "choose another directory"
-                )
+                raise RecordRefused(_refusal(run_dir, foreign))
             replaced, lock = _move_aside(lock)
         clean_stale_temp(run_dir)
         yield Record(run_dir=run_dir, cfg=cfg, digest=digest, replaced=replaced)
     finally:
         lock.release()
+
+
+def _foreign_files(run_dir: Path) -> list[str]:
+    """What a directory without a ccm record holds besides the run's lock and Hydra's job log
+    (``<job name>.log``, opened and appended to by Hydra before any ccm code runs)."""
+    return sorted(
+        p.name for p in run_dir.iterdir()
+        if p.name != LOCK_NAME and not (p.suffix == ".log" and p.is_file())
+    )  # fmt: skip
+
+
+def _refusal(run_dir: Path, foreign: list[str]) -> str:
+    """The one line that refuses ``run_dir``: another config's record, or files not ccm's."""
+    if foreign:
+        shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+        what = f"holds files that are not a ccm run record ({shown})"
+    else:
+        what = f"holds a run of another config ({HASH_NAME} differs)"
+    return (
+        f"run directory {run_dir} {what}; run again with --force to move it aside and start "
+        "over, or choose another directory"
+    )
 
 
 def ok_summary(run_dir: Path) -> dict | None:

@@ -4,12 +4,16 @@ A lab keeps its tasks, controllers and experiments outside the package and names
 Hydra's own mechanisms: ``ccm run --config-dir DIR`` (or ``-cd DIR``, Hydra's flag) or the
 override ``hydra.searchpath=[file:///abs/DIR]``. DIR has the package's layout
 (``task/*.yaml``, ``experiment/*.yaml``, …); an option in DIR shadows the package's option of
-the same name. ccm's own checks (the precheck, ``ccm list``, the condition overrides of an
-experiment) look in the same directories, in this order: the user's, then the package's.
+the same name. Hydra itself searches such directories after the package's, so ``ccm run``
+names them in :data:`DIRS_ENV` while it runs and the search-path plugin
+``hydra_plugins/ccm_config_dirs.py`` puts them first. ccm's own checks (the precheck,
+``ccm list``, the condition overrides of an experiment) look in the same order: the user's
+directories, then the package's.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -17,6 +21,10 @@ from ccm.core.errors import ConfigError
 
 DIR_FLAGS = ("--config-dir", "-cd")
 SEARCHPATH = "hydra.searchpath"
+
+#: the user's config directories while ``ccm run`` runs (``os.pathsep``-separated), for the
+#: search-path plugin; sweep workers inherit it
+DIRS_ENV = "CCM_CONFIG_DIRS"
 
 #: the config groups a run composes (one option each)
 GROUPS = ("sim", "controller", "task", "experiment")
@@ -65,6 +73,11 @@ def check_dirs(dirs: Sequence[Path], key: str = "--config-dir") -> list[Path]:
                               "experiment/, … as in the package's configs)")  # fmt: skip
         out.append(d.resolve())
     return out
+
+
+def env_dirs() -> list[str]:
+    """The directories :data:`DIRS_ENV` names (none when it is unset or empty)."""
+    return [d for d in os.environ.get(DIRS_ENV, "").split(os.pathsep) if d]
 
 
 def searchpath_override(dirs: Sequence[Path]) -> list[str]:
