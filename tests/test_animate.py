@@ -178,7 +178,7 @@ def test_bad_arguments_one_line_each(
         ([str(smoke), "--condition", "nope"], "--condition", "allowed: fixed_low, fixed_high"),
         ([str(smoke), "--trial", "7"], "--trial", "recorded: 1, 2"),
         ([str(smoke), "--trial", "x"], "animate", "invalid int value"),
-        ([str(smoke), "--fps", "0"], "--fps", "must be > 0"),
+        ([str(smoke), "--fps", "0"], "--fps", "must be in [1.0, 100.0], got 0.0"),
         ([str(smoke), "--out", "clip.avi"], "--out", ".mp4 or .gif"),
         ([str(smoke), "--bogus"], "animate", "unexpected '--bogus'"),
         ([], "animate", "RUN_DIR is required"),

@@ -68,3 +68,86 @@ def test_demo_force_replaces_an_existing_file(tmp_path: Path) -> None:
     assert main(["demo", "smoke", "--out", str(out), "--force"]) == 0
     assert out.read_text().startswith("t,x,y,")
     assert [p.name for p in tmp_path.iterdir()] == ["d.csv"]  # no temporary file left
+
+
+#: ``ccm run`` overrides that once ran and reported numbers that were not (issue #39), with
+#: the key the one line must name and what it must say
+SMOKE, SINGLE = "experiment=smoke", "experiment=single"
+RUN_CASES = {
+    "cut-off far below a trial": (
+        [SMOKE, "metrics.lowpass_hz=1e-300"],
+        "metrics.lowpass_hz: 1e-300 Hz: must lie in [0.265, 500) Hz",
+    ),
+    "cut-off above Nyquist": (
+        [SMOKE, "metrics.lowpass_hz=1e9"],
+        "metrics.lowpass_hz: 1e+09 Hz: must lie in [0.265, 500) Hz",
+    ),
+    "cut-off at Nyquist": ([SMOKE, "metrics.lowpass_hz=500"], "metrics.lowpass_hz: 500 Hz:"),
+    "a trial that outgrows memory": (
+        [SMOKE, "experiment.settle_time_s=1e7"],
+        "experiment.settle_time_s: a trial of 1e+07 s is 10000000400 control steps",
+    ),
+    "noise beyond any sensor": (
+        [SMOKE, "sim.sensor.force_noise_std=1e200"],
+        "sim.sensor.force_noise_std: must lie within ±100000",
+    ),
+    "bias beyond any sensor": (
+        [SMOKE, "sim.sensor.force_bias=-1e6"],
+        "sim.sensor.force_bias: must lie within ±100000",
+    ),
+    "reference model beyond Nyquist": (
+        [SINGLE, "controller=mrac", "controller.omega=1e200"],
+        "controller.omega: must be <= pi / control step = 3142 rad/s",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(RUN_CASES))
+def test_run_refuses_with_one_line_and_writes_nothing(
+    case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+    overrides, expected = RUN_CASES[case]
+    out = tmp_path / "run"
+    assert main(["run", *overrides, f"hydra.run.dir={out}"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"ccm: error: {expected}"), err
+    assert not out.exists()
+
+
+def test_the_cut_off_bounds_follow_the_trial_and_the_step() -> None:
+    """The bounds are the filter's physics: time constant 1/(2 pi f) within the trial, f below
+    the Nyquist frequency 1/(2 dt); values just inside pass."""
+    from ccm.core.errors import ConfigError
+    from ccm.experiment.config_check import check_lowpass
+
+    check_lowpass(1.0 / (2 * 3.141592653589793 * 2.0) * 1.001, 0.001, 2.0)
+    check_lowpass(499.9, 0.001, 2.0)
+    check_lowpass(249.9, 0.002, 2.0)
+    for f, dt in ((250.0, 0.002), (0.079, 0.001)):
+        with pytest.raises(ConfigError, match="metrics.lowpass_hz"):
+            check_lowpass(f, dt, 2.0)
+
+
+@pytest.mark.parametrize("fps", ["1e6", "0.5", "nan"])
+def test_animate_refuses_a_frame_rate_outside_what_a_clip_holds(
+    fps: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from ccm.core.errors import ConfigError
+    from ccm.plots.frames import AnimateSettings
+
+    with pytest.raises(ConfigError, match=r"--fps: must be (in \[1.0, 100.0\]|a finite)"):
+        AnimateSettings.from_mapping({}, float(fps))
+    AnimateSettings.from_mapping({}, 100.0)  # the GIF limit itself is allowed
+
+
+def test_report_lists_a_string_metric_as_missing() -> None:
+    from ccm.reporting.report import metrics_table
+
+    runs = [
+        (Path(f"r{i}"), {"experiment": "e", "seed": i, "status": "ok",
+                         "conditions": {"c": {"m": v}}})
+        for i, v in enumerate([1.0, "oops", 3.0])
+    ]  # fmt: skip
+    row = metrics_table(runs).iloc[0]
+    assert (row["metric"], row["n"], row["missing"], row["mean"]) == ("m", 2, 1, 2.0)

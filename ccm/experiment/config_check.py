@@ -21,6 +21,12 @@ from ccm.core.errors import NAME_MAX, ConfigError
 #: status ok, error 0 and a 1-row CSV); chosen: a few steps more than the metrics' filters need
 MIN_TRIAL_STEPS = 10
 
+#: a trial longer than this many control steps is refused (issue #39: ``duration=1e7`` grew
+#: memory without limit). The trial loop keeps every step's record until the trial ends:
+#: measured 2026-12-05, ~2.3 kB per control step (smoke, 2-D, 80 000 steps: +182 MB RSS), so
+#: 600 000 steps (10 min at 1 kHz) hold ~1.4 GB in 2-D, more in 3-D
+MAX_TRIAL_STEPS = 600_000
+
 #: what ``hydra.launcher._target_`` ends with for SLURM, and the commands submitit calls
 _SLURM = ("SlurmLauncher", ("sbatch", "srun"))
 
@@ -34,26 +40,50 @@ def trial_duration(pattern_s: float, settings: Mapping[str, Any]) -> float:
 
 def check_trial_steps(plan: Any, settings: Mapping[str, Any]) -> None:
     """Every condition × phase of ``plan`` (:data:`ccm.experiment.components.Plan`) runs
-    trials of at least :data:`MIN_TRIAL_STEPS` control steps."""
+    trials of :data:`MIN_TRIAL_STEPS` to :data:`MAX_TRIAL_STEPS` control steps, over which the
+    metrics' low-pass (``metrics.lowpass_hz``) is defined (:func:`check_lowpass`)."""
     for cond, phases in plan:
         for _, comp in phases:
             pattern_s = comp.task.pattern.duration
             d = trial_duration(pattern_s, settings)
             dt = comp.sim.control_dt
             steps = math.floor(d / dt + 1e-9)
+            where = f" (condition {cond.name})" if cond.overrides else ""
+            if steps > MAX_TRIAL_STEPS:
+                longer = settings["settle_time_s"] > pattern_s  # the part that made it long
+                raise ConfigError(
+                    "experiment.settle_time_s" if longer else "task.pattern",
+                    f"a trial of {d:g} s is {steps} control steps of {dt:g} s; "
+                    f"at most {MAX_TRIAL_STEPS} (each step's record is kept until the trial "
+                    f"ends, ~2.3 kB): shorten it or set experiment.max_time_s{where}",
+                )  # fmt: skip
             if steps >= MIN_TRIAL_STEPS:
+                check_lowpass(settings["lowpass_hz"], dt, d, where)
                 continue
             cut = d < pattern_s + settings["settle_time_s"]
             key = "experiment.max_time_s" if cut else "task.pattern"
             if cut and settings.get("fast"):  # fast mode cuts at the smaller of the two
                 key += " or experiment.fast_time_s"
             what = "" if cut else " (pattern + experiment.settle_time_s)"
-            where = f" (condition {cond.name})" if cond.overrides else ""
             raise ConfigError(
                 key, f"a trial of {d:g} s{what} is {steps} control steps of {dt:g} s "
                 f"(sim.dt x sim.control_decimation); a trial needs >= {MIN_TRIAL_STEPS}: "
                 f"lengthen it or lower sim.dt{where}",
             )  # fmt: skip
+
+
+def check_lowpass(cutoff_hz: float, dt: float, trial_s: float, where: str = "") -> None:
+    """``metrics.lowpass_hz`` (the first-order filter of :func:`ccm.core.filters.lowpass`)
+    must lie below the Nyquist frequency 1/(2 dt), where the filter stops filtering, and its
+    time constant 1/(2π f) within a trial, else the filtered velocity never moves (issue #39:
+    1e-300 Hz gave accelerations of exactly 0)."""
+    low, high = 1.0 / (2.0 * math.pi * trial_s), 0.5 / dt
+    if not low <= cutoff_hz < high:
+        raise ConfigError(
+            "metrics.lowpass_hz", f"{cutoff_hz:g} Hz: must lie in [{low:.3g}, {high:g}) Hz for "
+            f"trials of {trial_s:g} s at {dt:g} s a control step (its time constant within a "
+            f"trial, below the Nyquist frequency){where}",
+        )  # fmt: skip
 
 
 def check_output_dir(key: str, path: str | Path) -> None:

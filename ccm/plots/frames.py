@@ -52,6 +52,12 @@ class Camera:
     fov: float = 50.0
 
 
+#: frames per second a clip may have (issue #39: ``--fps 1e6`` hung writing a million frames
+#: per simulated second). A GIF stores each frame's delay in 1/100 s, so 100 fps is its limit;
+#: below 1 fps a clip of a trial is a few stills.
+FPS_RANGE = (1.0, 100.0)
+
+
 @dataclass(frozen=True)
 class AnimateSettings:
     """The ``animate`` config block (defaults: the values ``configs/config.yaml`` ships)."""
@@ -86,10 +92,11 @@ class AnimateSettings:
             fov=check_range(f"{key}.fov", cam.get("fov", Camera.fov), 1.0, 170.0),
         )
         return cls(
-            fps=check_positive(
+            fps=check_range(
                 "--fps" if fps is not None else "animate.fps",
                 fps if fps is not None else d.get("fps", cls.fps),
-            ),
+                *FPS_RANGE,
+            ),  # fmt: skip
             width=size[0],
             height=size[1],
             force_scale_N_per_m=None

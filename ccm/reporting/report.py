@@ -163,16 +163,18 @@ def _unfinished(cfg: Path) -> dict[str, Any]:
 
 def metrics_table(runs: Sequence[tuple[Path, dict[str, Any]]]) -> Any:
     """pandas DataFrame: experiment, condition, metric, mean, ci95, n, missing (ok runs
-    only; ``missing``: runs whose value is None or not finite, which the mean leaves out)."""
+    only; ``missing``: runs whose value is None, a string or not finite, which the mean leaves
+    out)."""
     import pandas as pd
 
+    # a string where a number belongs is kept, as missing (issue #39: it was dropped unlisted)
     rows = [
         {"experiment": s.get("experiment"), "seed": s.get("seed"), "condition": cond,
          "metric": k, "value": _number(v)}
         for _, s in runs if s.get("status") == "ok"
         for cond, ms in (s.get("conditions") or {}).items()
         for k, v in ms.items()
-        if v is None or (isinstance(v, int | float) and not isinstance(v, bool))
+        if v is None or isinstance(v, str | int | float) and not isinstance(v, bool)
     ]  # fmt: skip
     cols = ["experiment", "condition", "metric", "mean", "ci95", "n", "missing"]
     if not rows:
@@ -186,9 +188,10 @@ def metrics_table(runs: Sequence[tuple[Path, dict[str, Any]]]) -> Any:
     return out.rename(columns={"count": "n"}).drop(columns="std")
 
 
-def _number(v: float | None) -> float:
-    """A metric value as a float; None and non-finite values as NaN (counted as missing)."""
-    return float(v) if v is not None and math.isfinite(v) else math.nan
+def _number(v: float | str | None) -> float:
+    """A metric value as a float; None, a string and non-finite values as NaN (counted as
+    missing)."""
+    return float(v) if isinstance(v, int | float) and math.isfinite(v) else math.nan
 
 
 def _discussed(doc: str) -> str:

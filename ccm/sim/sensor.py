@@ -29,15 +29,27 @@ from ccm.core.errors import (
     to_plain,
 )
 
+#: the largest noise std, bias or spike a sensor may be given [N, N m] (issue #39: a std of
+#: 1e200 N gave non-finite forces in an ``ok`` run). Chosen from the physics: a robot's wrist
+#: F/T sensor is rated for a few kN and a few hundred N m (ATI's largest Omega sensors: tens of
+#: kN); a noise or offset beyond ten times that is not a sensor but a bad number.
+FORCE_LIMIT_N = 1e5
+TORQUE_LIMIT_NM = 1e4
 
-def _per_axis(key: str, value: Any, dim: int, nonneg: bool) -> tuple[float, ...]:
-    """A scalar (broadcast to every axis) or a length-``dim`` list, as a tuple of floats."""
+
+def _per_axis(key: str, value: Any, dim: int, nonneg: bool, limit: float) -> tuple[float, ...]:
+    """A scalar (broadcast to every axis) or a length-``dim`` list, as a tuple of floats, each
+    within ±``limit`` (and >= 0 if ``nonneg``)."""
     if isinstance(value, int | float | np.number) and not isinstance(value, bool):
         v = check_nonneg(key, value) if nonneg else check_finite(key, value)
-        return (float(v),) * dim
-    arr = check_vector(key, value, dim)
+        arr = np.full(dim, float(v))
+    else:
+        arr = check_vector(key, value, dim)
     if nonneg and np.any(arr < 0.0):
         raise ConfigError(key, f"must be >= 0 on every axis, got {value!r}")
+    if np.any(np.abs(arr) > limit):
+        raise ConfigError(key, f"must lie within ±{limit:g} on every axis (a sensor's scale), "
+                          f"got {value!r}")  # fmt: skip
     return tuple(float(a) for a in arr)
 
 
@@ -97,17 +109,21 @@ class SensorConfig:
         """Build from scalars (broadcast to every axis) or per-axis sequences, validating."""
         return cls(
             spike_prob=check_range(f"{prefix}.spike_prob", spike_prob, 0.0, 1.0),
-            spike_N=check_nonneg(f"{prefix}.spike_N", spike_N),
+            spike_N=check_range(f"{prefix}.spike_N", spike_N, 0.0, FORCE_LIMIT_N),
             dropout_prob=check_range(f"{prefix}.dropout_prob", dropout_prob, 0.0, 1.0),
             dropout_steps=check_int_nonneg(f"{prefix}.dropout_steps", dropout_steps),
             force_noise_std=_per_axis(
-                f"{prefix}.force_noise_std", force_noise_std, force_dim, True
+                f"{prefix}.force_noise_std", force_noise_std, force_dim, True, FORCE_LIMIT_N
             ),
             torque_noise_std=_per_axis(
-                f"{prefix}.torque_noise_std", torque_noise_std, torque_dim, True
+                f"{prefix}.torque_noise_std", torque_noise_std, torque_dim, True, TORQUE_LIMIT_NM
             ),
-            force_bias=_per_axis(f"{prefix}.force_bias", force_bias, force_dim, False),
-            torque_bias=_per_axis(f"{prefix}.torque_bias", torque_bias, torque_dim, False),
+            force_bias=_per_axis(
+                f"{prefix}.force_bias", force_bias, force_dim, False, FORCE_LIMIT_N
+            ),
+            torque_bias=_per_axis(
+                f"{prefix}.torque_bias", torque_bias, torque_dim, False, TORQUE_LIMIT_NM
+            ),
         )
 
     @classmethod

@@ -158,6 +158,12 @@ class MRAC(Controller):
         for name, arr in (("omega", self.omega), ("zeta", self.zeta)):
             if arr.size not in (1, dim):
                 raise ConfigError(f"{self._key}.{name}", f"needs 1 or {dim} values, got {arr.size}")
+        nyquist = math.pi / control_dt  # rad/s: a faster reference model is not sampled
+        if np.any(self.omega > nyquist):
+            raise ConfigError(
+                f"{self._key}.omega", f"must be <= pi / control step = {nyquist:.4g} rad/s (the "
+                f"Nyquist rate at {control_dt:g} s), got {self.omega.max():g}",
+            )  # fmt: skip
         self.loop.reset(dim, control_dt)
         omega = np.broadcast_to(self.omega, (dim,))
         zeta = np.broadcast_to(self.zeta, (dim,))
