@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import ccm
 from ccm.experiment import jobdir, user_configs
 from ccm.experiment.precheck import compose_extra, precheck, yaml_line
+from ccm.experiment.trust import TRUST_FLAG
 from ccm.experiment.user_configs import (  # noqa: F401 - also importable from here
     GROUPS,
     config_dir,
@@ -39,6 +40,8 @@ commands:
   run -m [OVERRIDES]    multirun sweep, e.g. ccm run -m experiment=smoke seed=0,1,2
   run --force …         start over where a record is (it moves to <dir>.replaced-<time>)
   run -cd DIR …         also use the configs in DIR (--config-dir; or hydra.searchpath=[…])
+  run --trust-configs … let configs name callables other than ccm's and Hydra's own
+                        (hydra.callbacks, launchers, logging): configs are code
   list [-cd DIR]        the experiments, tasks, controllers and sims the config groups offer
   report DIR            report.md + report.html for the runs under DIR (a run or a sweep):
                         the papers' claims with verdicts (experiments/claims.yaml), metrics
@@ -250,6 +253,8 @@ def _run_app(args: list[str]) -> int:
     from ccm.core.errors import ConfigError
     from ccm.experiment import run_record
 
+    trusted = TRUST_FLAG in args
+    args = [a for a in args if a != TRUST_FLAG]
     multirun = "-m" in args or "--multirun" in args
     flags = {"-m", "--multirun"}
     info_flags = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve"}
@@ -263,7 +268,7 @@ def _run_app(args: list[str]) -> int:
         return _fail(str(exc), EXIT_CONFIG)
     with run_record.scoped_env(user_configs.DIRS_ENV, os.pathsep.join(map(str, dirs))):
         if not (set(args) & info_flags):
-            err = precheck(overrides, multirun, dirs)
+            err = precheck(overrides, multirun, dirs, trusted)
             if err:
                 return _fail(err, EXIT_CONFIG)
         return _hydra_app(args)

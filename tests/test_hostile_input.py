@@ -3,12 +3,13 @@ line naming the problem, a non-zero exit, and nothing already written is changed
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
-from ccm.cli import main
+from ccm.cli import config_dir, main
 
 
 def _snapshot(root: Path) -> dict[str, bytes]:
@@ -102,19 +103,6 @@ RUN_CASES = {
 }
 
 
-@pytest.mark.parametrize("case", list(RUN_CASES))
-def test_run_refuses_with_one_line_and_writes_nothing(
-    case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
-) -> None:
-    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
-    overrides, expected = RUN_CASES[case]
-    out = tmp_path / "run"
-    assert main(["run", *overrides, f"hydra.run.dir={out}"]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith(f"ccm: error: {expected}"), err
-    assert not out.exists()
-
-
 def test_the_cut_off_bounds_follow_the_trial_and_the_step() -> None:
     """The bounds are the filter's physics: time constant 1/(2 pi f) within the trial, f below
     the Nyquist frequency 1/(2 dt); values just inside pass."""
@@ -151,3 +139,69 @@ def test_report_lists_a_string_metric_as_missing() -> None:
     ]  # fmt: skip
     row = metrics_table(runs).iloc[0]
     assert (row["metric"], row["n"], row["missing"], row["mean"]) == ("m", 2, 1, 2.0)
+
+
+TRUST_CASES = {
+    "a callback calling open": (
+        [SMOKE, "+hydra.callbacks.evil._target_=builtins.open", "+hydra.callbacks.evil.file=x"],
+        "hydra.callbacks.evil._target_: 'builtins.open' is not one of ccm's or Hydra's own",
+    ),
+    "a callback nested in an allowed one": (
+        [SMOKE, "+hydra.callbacks.sweep_check.hook._target_=shutil.copyfile"],
+        "hydra.callbacks.sweep_check.hook._target_: 'shutil.copyfile' is not one of",
+    ),
+    "a logging handler that is a function": (
+        [SMOKE, "hydra.job_logging.handlers.file.class=os.system"],
+        "hydra.job_logging.handlers.file.class: 'os.system' is not one of",
+    ),
+    "an environment variable in an override": (
+        [SMOKE, "task.name=${oc.env:HOME}"],
+        "task.name: reads an environment variable (${oc.env:...})",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", [*RUN_CASES, *TRUST_CASES])
+def test_run_refuses_with_one_line_and_writes_nothing(
+    case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+    overrides, expected = {**RUN_CASES, **TRUST_CASES}[case]
+    out = tmp_path / "run"
+    assert main(["run", *overrides, f"hydra.run.dir={out}"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"ccm: error: {expected}"), err
+    assert os.environ["HOME"] not in err  # no environment value reaches a message
+    assert not out.exists()
+
+
+def test_an_environment_variable_in_a_lab_config_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    lab = tmp_path / "lab" / "task"
+    lab.mkdir(parents=True)
+    task = (config_dir() / "task" / "smoke.yaml").read_text(encoding="utf-8")
+    (lab / "smoke.yaml").write_text(task.replace("name: smoke", "name: ${oc.env:HOME}", 1))
+    out = tmp_path / "run"
+    assert main(["run", "-cd", str(lab.parent), SMOKE, f"hydra.run.dir={out}"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ccm: error: task.name: reads an environment variable"), err
+    assert os.environ["HOME"] not in err and not out.exists()
+
+
+def test_only_ccms_hydras_and_loggings_callables_are_allowed() -> None:
+    from ccm.experiment.trust import allowed_callable
+
+    for name in (
+        "ccm.experiment.sweep_check.SweepCheck",
+        "hydra_plugins.hydra_joblib_launcher.joblib_launcher.JoblibLauncher",
+        "hydra._internal.core_plugins.basic_sweeper.BasicSweeper",
+        "logging.StreamHandler",
+        "logging.handlers.RotatingFileHandler",
+    ):
+        assert allowed_callable(name), name
+    for name in (
+        "builtins.open", "shutil.copyfile", "os.system", "hydra.utils.call",
+        "ccm.core.records.write_atomic", "logging.basicConfig", "logging.os",
+    ):  # fmt: skip
+        assert not allowed_callable(name), name

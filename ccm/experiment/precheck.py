@@ -10,6 +10,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ccm.experiment import user_configs
+from ccm.experiment.trust import check_no_env, check_targets
 from ccm.experiment.user_configs import GROUPS
 
 
@@ -60,9 +61,12 @@ def _check_groups(overrides: Sequence[str], dirs: Sequence[Path] = ()) -> str | 
     return None
 
 
-def precheck(overrides: Sequence[str], multirun: bool, dirs: Sequence[Path] = ()) -> str | None:
+def precheck(
+    overrides: Sequence[str], multirun: bool, dirs: Sequence[Path] = (), trusted: bool = False
+) -> str | None:
     """Compose each override combination and build its components, then check Hydra's own
-    settings (output directory, launcher); return an error line. ``dirs``: the user's config
+    settings (output directory, launcher, the callables it will call: ``trusted`` lifts that
+    check, :mod:`ccm.experiment.trust`); return an error line. ``dirs``: the user's config
     directories (:mod:`ccm.experiment.user_configs`), searched before the package's."""
     from hydra import initialize_config_dir
     from hydra.errors import HydraException
@@ -80,7 +84,7 @@ def precheck(overrides: Sequence[str], multirun: bool, dirs: Sequence[Path] = ()
             err = _guarded(lambda c=combo: _check_combo(c, planned, dirs))
             if err:
                 return err
-        return _guarded(lambda: _check_hydra(overrides, combos[0], multirun, dirs))
+        return _guarded(lambda: _check_hydra(overrides, combos[0], multirun, dirs, trusted))
 
 
 def _check_combo(
@@ -95,6 +99,7 @@ def _check_combo(
     from ccm.metrics.trial import check_extra_metrics
 
     cfg = compose("config", overrides=[*combo, *user_configs.searchpath_override(dirs)])
+    check_no_env(cfg, combo)  # before anything resolves a value into a message
     settings = check_experiment(cfg)
     check_extra_metrics(cfg)
     unseeded = tuple(o for o in combo if o.partition("=")[0].lstrip("+~") != "seed")
@@ -107,10 +112,14 @@ def _check_combo(
 
 
 def _check_hydra(
-    overrides: Sequence[str], base: list[str], multirun: bool, dirs: Sequence[Path] = ()
+    overrides: Sequence[str],
+    base: list[str],
+    multirun: bool,
+    dirs: Sequence[Path] = (),
+    trusted: bool = False,
 ) -> None:
     """Compose the base combination with its ``hydra`` overrides (sweeps left out) and check
-    the run or sweep directory, the job name and the launcher."""
+    the run or sweep directory, the job name, the launcher and the callables Hydra will call."""
     from hydra import compose
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
@@ -126,7 +135,9 @@ def _check_hydra(
     ]  # fmt: skip
     search = user_configs.searchpath_override(dirs)
     cfg = compose("config", overrides=[*base, *own, *search], return_hydra_config=True)
+    check_no_env(cfg, list(overrides))
     check_hydra(cfg.hydra, multirun)
+    check_targets(cfg.hydra, trusted)
     if multirun:  # the sweep's config: the overrides but the sweeps (as Hydra's multirun.yaml)
         unswept = [ov.input_line for ov in parsed if not ov.is_sweep_override()]
         sweep = compose("config", overrides=[*unswept, *search])
