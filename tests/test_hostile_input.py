@@ -205,3 +205,50 @@ def test_only_ccms_hydras_and_loggings_callables_are_allowed() -> None:
         "ccm.core.records.write_atomic", "logging.basicConfig", "logging.os",
     ):  # fmt: skip
         assert not allowed_callable(name), name
+
+
+def test_report_on_a_binary_summary_names_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue #39: bytes that are not UTF-8 in summary.json raised UnicodeDecodeError."""
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "summary.json").write_bytes(bytes(range(128, 256)))
+    assert main(["report", str(tmp_path)]) == 1  # a report of failed runs only: exit 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith(
+        "ccm: error: report.dir: no usable run"
+    )
+    assert "unreadable" in (tmp_path / "report.md").read_text(encoding="utf-8")
+
+
+@pytest.fixture(scope="module")
+def smoke_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("smoke") / "run"
+    assert main(["run", SMOKE, "experiment.figures=false", f"hydra.run.dir={out}"]) == 0
+    return out
+
+
+DAMAGE = {
+    "truncated Parquet": ("timeseries/fixed_low/trial_002.parquet", "Parquet magic bytes"),
+    "truncated summary.json": ("summary.json", "Unterminated string"),
+    "truncated config": (".hydra/config.yaml", "config.yaml cannot be read"),
+}
+
+
+@pytest.mark.parametrize("case", list(DAMAGE))
+def test_animate_names_a_damaged_file(
+    case: str, smoke_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(smoke_run, run)
+    name, expected = DAMAGE[case]
+    damaged = run / name
+    damaged.write_bytes(damaged.read_bytes()[:100])
+    before = _snapshot(run)
+    assert main(["animate", str(run), "--out", str(tmp_path / "a.gif")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"ccm: error: RUN_DIR: {damaged}" in err, err
+    assert expected in err and "the run's record is damaged" in err
+    assert _snapshot(run) == before and not (tmp_path / "a.gif").exists()

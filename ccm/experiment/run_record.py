@@ -200,7 +200,7 @@ def ok_summary(run_dir: Path) -> dict | None:
     """The summary of a run directory that already holds an ``ok`` run, else None."""
     try:
         summary = json.loads((Path(run_dir) / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
+    except (OSError, ValueError):  # bad JSON, or bytes that are not UTF-8
         return None
     return summary if isinstance(summary, dict) and summary.get("status") == "ok" else None
 

@@ -46,7 +46,7 @@ def sweep_failures(sweep_dir: Path) -> list[str]:
             continue
         try:
             status = json.loads((job / "summary.json").read_text(encoding="utf-8")).get("status")
-        except (OSError, json.JSONDecodeError):
+        except (OSError, ValueError):  # bad JSON, or bytes that are not UTF-8
             status = None
         if status != "ok":
             bad.append(str(job))

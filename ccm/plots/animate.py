@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -134,9 +134,13 @@ def animate_run(
     ccfg = condition_config(cfg, cond, phase)
     settings = AnimateSettings.from_mapping(ccfg.get("animate"), fps)
     labels = {"phase": phase, "segments": segment_names(ccfg.task), "source": str(path)}
-    log = {k: np.asarray(v, dtype=float) for k, v in read_timeseries(path).items()}
+    log = {k: np.asarray(v, dtype=float) for k, v in _readable(path, read_timeseries).items()}
     clip = frames(log, to_plain(ccfg.task.scene), to_plain(ccfg.sim), settings, labels)
-    return target, write_clip(target, clip, settings.fps)
+    try:
+        return target, write_clip(target, clip, settings.fps)
+    except OSError as exc:  # a read-only run, a full disk
+        raise ConfigError("--out", f"{target}: cannot write ({exc.strerror or exc}); give "
+                          "--out FILE in a writable place") from None  # fmt: skip
 
 
 USAGE = "usage: ccm animate RUN_DIR [--condition C] [--trial N] [--out FILE] [--fps F]"
@@ -209,7 +213,29 @@ def _with_series(run: Path) -> list[str]:
 def _load_config(run: Path) -> Any:
     from omegaconf import OmegaConf
 
-    return OmegaConf.load(run / ".hydra" / "config.yaml")
+    path = run / ".hydra" / "config.yaml"
+    cfg = _readable(path, OmegaConf.load)
+    missing = [
+        k for k in ("experiment", "task", "sim") if not OmegaConf.is_dict(cfg) or k not in cfg
+    ]
+    if missing:
+        raise ConfigError("RUN_DIR", f"{path} cannot be read (no {missing[0]!r} in it); the run's "
+                          "record is damaged")  # fmt: skip
+    return cfg
+
+
+def _readable(path: Path, read: Callable[[Path], Any]) -> Any:
+    """``read(path)``; a damaged file (truncated, not UTF-8, not its format) is a ConfigError
+    naming it (issue #39: tracebacks from JSON, YAML and Parquet readers)."""
+    import yaml
+
+    try:
+        return read(path)
+    except (OSError, ValueError, yaml.YAMLError) as exc:  # pyarrow's ArrowInvalid: ValueError
+        text = str(exc).replace(f"'{path}'", "").replace(str(path), "").strip()
+        why = text.splitlines()[0] if text else type(exc).__name__
+        raise ConfigError("RUN_DIR", f"{path} cannot be read ({why[:160]}); the run's "
+                          "record is damaged") from None  # fmt: skip
 
 
 def _conditions(cfg: Any, run: Path) -> list[str]:
@@ -226,7 +252,8 @@ def _phase_of(run: Path, condition: str, trial: int) -> str | None:
     summary = run / "summary.json"
     if not summary.is_file():
         return None
-    rows = json.loads(summary.read_text(encoding="utf-8")).get("trials") or []
+    data = _readable(summary, lambda p: json.loads(p.read_text(encoding="utf-8")))
+    rows = (data.get("trials") if isinstance(data, dict) else None) or []
     for row in rows:
         if row.get("condition") == condition and row.get("trial") == trial:
             return row.get("phase")

@@ -54,7 +54,7 @@ def collect(root: Path) -> list[tuple[Path, dict[str, Any]]]:
     for path in sorted(root.rglob("summary.json")):
         try:
             summary = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as exc:
+        except (OSError, ValueError) as exc:  # ValueError: bad JSON, or bytes that are not UTF-8
             runs.append((path.parent, {"status": "failed", "error": f"unreadable: {exc}"}))
             continue
         problem = summary_problem(summary)
@@ -116,7 +116,7 @@ def with_run_info(run: Path, summary: dict[str, Any]) -> dict[str, Any]:
     ``condition: run_info``; unchanged without a readable run_info.json."""
     try:
         info = json.loads((run / "run_info.json").read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
+    except (OSError, ValueError):  # bad JSON, or bytes that are not UTF-8
         return summary
     conditions = summary.get("conditions")
     if not isinstance(info, dict) or not isinstance(conditions, dict):
@@ -138,7 +138,7 @@ def _hydra_config(run: Path) -> dict[str, Any]:
 
     try:
         data = yaml.safe_load((run / ".hydra" / "config.yaml").read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError):
+    except (OSError, ValueError, yaml.YAMLError):  # ValueError: bytes that are not UTF-8
         return {}
     return data if isinstance(data, dict) else {}
 
