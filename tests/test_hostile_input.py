@@ -252,3 +252,53 @@ def test_animate_names_a_damaged_file(
     assert err.count("\n") == 1 and f"ccm: error: RUN_DIR: {damaged}" in err, err
     assert expected in err and "the run's record is damaged" in err
     assert _snapshot(run) == before and not (tmp_path / "a.gif").exists()
+
+
+def _recording(tmp: Path, kind: str) -> Path:
+    """A demonstration file of ``kind``: a directory, a FIFO, t in ms, t as datetimes."""
+    import numpy as np
+    import pandas as pd
+
+    path = tmp / "demo.csv"
+    if kind == "directory":
+        path.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(path)
+    else:
+        n = 3000
+        t = np.arange(n) * 1e-3
+        x = np.linspace(0.0, 0.05, n)
+        col = (
+            t * 1e3
+            if kind == "milliseconds"
+            else pd.date_range("2026-01-01", periods=n, freq="1ms")
+        )
+        pd.DataFrame({"t": col, "x": x, "y": 0.0}).to_csv(path, index=False)
+    return path
+
+
+RECORDINGS = {
+    "directory": "demo.csv: is a directory, not a file",
+    "fifo": "demo.csv: is not a regular file (a FIFO, socket or device)",
+    "milliseconds": (
+        "column t steps by 1 s (median); a recording is sampled every 1e-05 to 0.1 s "
+        "(milliseconds? t is in seconds)"
+    ),
+    "datetimes": (
+        "row 1: column t is not a finite number (seconds from the start, not a date or clock time)"
+    ),
+}
+
+
+@pytest.mark.parametrize("kind", list(RECORDINGS))
+def test_a_recording_that_is_not_one_is_named(
+    kind: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _recording(tmp_path, kind)
+    pattern = f"task.pattern=[{{type: recording, file: '{path}'}}]"
+    out = tmp_path / "run"
+    assert main(["run", SINGLE, "task=smoke", pattern, f"hydra.run.dir={out}"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and RECORDINGS[kind] in err, err
+    assert err.startswith(f"ccm: error: task.pattern[0].file: {path}")
+    assert not out.exists()

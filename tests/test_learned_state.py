@@ -4,6 +4,7 @@ learned as JSON at the end of a run, and ``init_from=<run dir>`` starts a run fr
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from collections.abc import Callable, Sequence
@@ -243,10 +244,20 @@ def test_runner_errors_name_init_from(composer: Composer, tmp_path: Path) -> Non
         (json.dumps({**record, "version": 7}), "version 7, this ccm reads 1"),
         (json.dumps({**record, "state": {"modes": []}}), "invalid learned state"),
         (json.dumps({**record, "trials": -1}), "needs 'trials'"),
-    ]:
+        (json.dumps({**record, "state": {**record["state"], "x": [[1.0, 1e300]]}}),
+         "state.x[0][1] = 1e+300: a learned state holds finite numbers within ±1e+12"),
+    ]:  # fmt: skip
         path.write_text(text)
         msg = one_line_error(composer, prev, "controller=avic_modes")
         assert msg.startswith(f"init_from: {path}: ") and expected in msg, msg
+    path.unlink()  # issue #39: a directory or a FIFO in a state file's place was "no state"
+    path.mkdir()
+    msg = one_line_error(composer, prev, "controller=avic_modes")
+    assert msg == f"init_from: {path}: is a directory, not a file"
+    path.rmdir()
+    os.mkfifo(path)  # reading it would block: refused without opening it
+    msg = one_line_error(composer, prev, "controller=avic_modes")
+    assert msg == f"init_from: {path}: is not a regular file (a FIFO, socket or device)"
 
 
 # ----------------------------------------------------------------------------- ccm run

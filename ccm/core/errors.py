@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -108,6 +109,21 @@ def check_file_name(key: str, value: Any) -> str:
             f"characters; got {shown}",
         )  # fmt: skip
     return value
+
+
+def check_regular_file(key: str, path: Path) -> Path:
+    """Return ``path`` if it is a regular file (or a link to one); else a ConfigError saying
+    what it is: missing, a directory, or another kind (a FIFO or a device, which reading
+    would block on or stream from: issue #39)."""
+    if path.is_file():
+        return path
+    if not path.exists():
+        what = "no such file"
+    elif path.is_dir():
+        what = "is a directory, not a file"
+    else:
+        what = "is not a regular file (a FIFO, socket or device)"
+    raise ConfigError(key, f"{path}: {what}")
 
 
 def check_choice(key: str, value: Any, allowed: Iterable[str]) -> str:

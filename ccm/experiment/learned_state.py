@@ -12,13 +12,14 @@ Every problem when loading is a one-line :class:`ConfigError` named ``init_from`
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 from ccm.control.base import Controller
 from ccm.control.registry import CONTROLLERS
-from ccm.core.errors import ConfigError
+from ccm.core.errors import ConfigError, check_regular_file
 from ccm.core.records import write_json_atomic
 
 STATE_FORMAT = "ccm-learned-state"
@@ -67,6 +68,8 @@ def load_states(init_from: Any, items: Iterable[tuple[str, Controller]]) -> dict
     prior: dict[str, int] = {}
     for name, controller in items:
         path = state_dir / f"{name}.json"
+        if path.exists() or path.is_symlink():  # there, but perhaps a directory or a FIFO
+            check_regular_file("init_from", path)
         if not path.is_file():
             if controller.state_dict() is None:
                 continue
@@ -99,9 +102,33 @@ def _load_state_file(path: Path, controller: Controller) -> int:
     trials = data.get("trials")
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 0 or "state" not in data:
         raise ConfigError("init_from", f"{path}: needs 'trials' (an integer >= 0) and 'state'")
+    _check_numbers(path, data["state"], "state")
     try:
         controller.load_state_dict(data["state"])
     except ConfigError as exc:
         problem = exc.problem if exc.key == "init_from" else str(exc)
         raise ConfigError("init_from", f"{path}: {problem}") from None
     return trials
+
+
+#: the largest magnitude a learned state holds (issue #39: a state of 1e300s failed the run
+#: later without naming the file). Saved states of the paper run reach 2e5 (sample counts);
+#: covariances, gains and weights are far smaller
+STATE_LIMIT = 1e12
+
+
+def _check_numbers(path: Path, node: Any, where: str) -> None:
+    """Every number in a state file finite and within ±:data:`STATE_LIMIT`, else one line
+    naming the file and the entry."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            _check_numbers(path, v, f"{where}.{k}")
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            _check_numbers(path, v, f"{where}[{i}]")
+    elif isinstance(node, int | float) and not isinstance(node, bool):
+        if not (math.isfinite(node) and abs(node) <= STATE_LIMIT):
+            raise ConfigError(
+                "init_from", f"{path}: {where} = {node!r}: a learned state holds finite numbers "
+                f"within ±{STATE_LIMIT:g}; the file is damaged or not a ccm state",
+            )  # fmt: skip

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ccm.core.errors import ConfigError
+from ccm.core.errors import ConfigError, check_regular_file
 
 #: Fewest rows a recording may have (the smoothing spline needs several per knot span).
 MIN_ROWS = 10
@@ -113,7 +113,10 @@ def _take(path: Path, key: str, cols: dict[str, np.ndarray], names: tuple[str, .
     bad = ~np.isfinite(out)
     if bad.any():
         row, col = (int(v) for v in np.argwhere(bad)[0])
-        raise ConfigError(key, f"{path}: row {row + 1}: column {names[col]} is not a finite number")
+        unit = " (seconds from the start, not a date or clock time)" if names[col] == "t" else ""
+        raise ConfigError(
+            key, f"{path}: row {row + 1}: column {names[col]} is not a finite number{unit}"
+        )
     return out
 
 
@@ -125,8 +128,22 @@ def _optional(path: Path, key: str, cols: dict[str, np.ndarray], names: tuple[st
     return _take(path, key, cols, names, n)
 
 
+#: the sampling steps a demonstration may have [s]: 100 kHz (above any F/T sensor's rate) to
+#: 10 Hz (slower misses a contact's transient altogether); issue #39: a time column in
+#: milliseconds passed as seconds was caught only by the smoothing's cut-off, named instead
+STEP_RANGE_S = (1e-5, 0.1)
+
+
 def _check_time(path: Path, key: str, t: np.ndarray) -> None:
     step = np.diff(t)
+    median = float(np.median(step))
+    low, high = STEP_RANGE_S
+    if not low <= median <= high:
+        hint = " (milliseconds? t is in seconds)" if median > high else ""
+        raise ConfigError(
+            key, f"{path}: column t steps by {median:.4g} s (median); a recording is sampled "
+            f"every {low:g} to {high:g} s{hint}",
+        )  # fmt: skip
     bad = np.flatnonzero(step <= 0.0)
     if bad.size:
         i = int(bad[0]) + 1
@@ -184,9 +201,7 @@ def read_recording(
             too few rows, a value that is not a finite number, a time that does not
             increase, or a jump above ``max_speed``.
     """
-    p = resolve_path(path)
-    if not p.is_file():
-        raise ConfigError(key, f"{p}: no such file")
+    p = check_regular_file(key, resolve_path(path))
     cols = _columns(p, key)
     if "t" not in cols:
         raise ConfigError(key, f"{p}: missing column t (has: {', '.join(sorted(cols)) or 'none'})")
