@@ -151,7 +151,7 @@ def _open_and_run(cfg: DictConfig, out_dir: Path, multirun: bool) -> None:
     write ``.hydra/`` and run."""
     from hydra.core.hydra_config import HydraConfig
 
-    from ccm.experiment.run_record import forced, ok_summary, open_record
+    from ccm.experiment.run_record import RecordRefused, forced, ok_summary, open_record
 
     with open_record(out_dir, cfg, force=forced()) as record:
         if record.replaced is not None:
@@ -162,7 +162,13 @@ def _open_and_run(cfg: DictConfig, out_dir: Path, multirun: bool) -> None:
                   "runs it again)")  # fmt: skip
             return
         hc = HydraConfig.get()
-        record.write_hydra(HydraConfig.instance().cfg, hc.overrides.task)
+        try:
+            record.write_hydra(HydraConfig.instance().cfg, hc.overrides.task)
+        except OSError as exc:  # a full disk, a quota (issue #39: a traceback)
+            raise RecordRefused(
+                f"run directory {out_dir}: cannot write its record ({exc.strerror or exc}); "
+                "free space there or choose another directory"
+            ) from None
         _run_locked(cfg, out_dir, list(hc.overrides.task), multirun)
 
 

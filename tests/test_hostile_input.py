@@ -302,3 +302,25 @@ def test_a_recording_that_is_not_one_is_named(
     assert err.count("\n") == 1 and RECORDINGS[kind] in err, err
     assert err.startswith(f"ccm: error: task.pattern[0].file: {path}")
     assert not out.exists()
+
+
+def test_a_full_disk_while_writing_the_record_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+
+    import ccm.experiment.run_record as run_record
+
+    def full(path: Path, text: str) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(run_record, "write_atomic", full)
+    out = tmp_path / "run"
+    with pytest.raises(SystemExit) as stop:  # inside the Hydra job: exits as ccm run does
+        main(["run", SMOKE, f"hydra.run.dir={out}"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(
+        f"ccm: error: run directory {out}: cannot write its record (No space left on device)"
+    ), err
+    assert not (out / "summary.json").exists()
