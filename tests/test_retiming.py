@@ -72,6 +72,16 @@ def test_smooth_step_special_values() -> None:
     assert smooth_step(np.zeros((2, 3))).shape == (2, 3)
 
 
+def test_smooth_step_is_eq11_off_the_symmetric_points() -> None:
+    """Eq. 11 (seed A) at tau = 1/4 and 9/10: e^(-1/tau) / (e^(-1/tau) + e^(-1/(1-tau))) =
+    1 / (1 + e^(1/tau - 1/(1-tau))); 0.5 at tau = 1/2 would also hold for a swapped or squared
+    exponent, these values do not."""
+    for tau in (0.25, 0.9):
+        expected = 1.0 / (1.0 + math.exp(1.0 / tau - 1.0 / (1.0 - tau)))
+        assert smooth_step(tau) == pytest.approx(expected, rel=1e-14)
+    assert smooth_step(0.25) == pytest.approx(0.06496, abs=1e-5)  # 1 / (1 + e^(8/3))
+
+
 def test_smooth_step_symmetry() -> None:
     tau = np.linspace(-0.5, 1.5, 20001)
     s, d1, d2, d3 = smooth_step_derivs(tau)
