@@ -130,3 +130,33 @@ def test_p_c_is_found_on_the_path_shifted_by_the_lead(slide: Any) -> None:
     x_c = float(slide.sample(phi_c).position[0])
     step = 0.26 * c.cfg.path_dt  # the slide's top speed x the plan's sampling
     assert 0.40 - radius <= x_c <= 0.40 - radius + step  # the first plan sample inside C
+
+
+# --- Eq. 9's data: approaches under the transition controller only (issue #38) ------------
+
+
+def test_an_impact_met_outside_c_gives_eq9_no_measurement(composer: Any) -> None:
+    """h4_contact_learning seed 40 (held-out seed on which this was found): the table's prior
+    lies outside region C, so the base controller meets it at the plan's speed (> 100 N). That
+    impact is not an approach by Eq. 8's transition controller, whose speed-force relation Eq. 9
+    and its line model (seed A §3.4.1): the table's belief takes the measured position, but
+    its approach model stays empty, so the next approach is at v_safe (seed A: "it starts with
+    a safe low velocity"). Before, the 142 N at 0.1 m/s went into the line and held the next
+    approaches at 0.007-0.0115 m/s (3.4-5.7 N against F_d = 8 N)."""
+    pytest.importorskip("pybullet")
+    from ccm.experiment.components import build_components, trial_seed
+    from ccm.experiment.trial import run_trial
+
+    base = composer(["experiment=h4_contact_learning"])
+    cfg = composer(["experiment=h4_contact_learning", *base.experiment.conditions.full])
+    comp = build_components(cfg)
+    try:  # trial 1 of `ccm run experiment=h4_contact_learning seed=40`: descent onto the table
+        a = run_trial(comp, seed=trial_seed(40, 1), duration_s=2.5).arrays()
+        ctrl = comp.controller
+    finally:
+        comp.sim.close()
+    assert float(np.max(a["truth_table_normal_N"])) > 100.0  # met at the plan's speed
+    table = next(c for c in ctrl.contact_map.contacts if c.name == "table")
+    assert table.updated_this_trial  # the position was measured ...
+    assert table.approach.velocities == []  # ... but Eq. 9 was given nothing
+    assert table.approach.next_velocity() == table.approach.v_safe == 0.05

@@ -251,8 +251,8 @@ class AnticipatoryAVIC(ContactEvents, Controller):
             z = self._measured(event.position)
             v_cmd = float(np.linalg.norm(self._commanded_velocity(event.onset_time)))
             measured = {"v_used": v_cmd, "f_measured": event.impact_force_N}
-            if v_cmd < self.detector.min_approach_speed:
-                measured = {}  # the plan was not approaching: no Eq. 9 measurement
+            if v_cmd < self.detector.min_approach_speed or not self._anticipated(event.onset_time):
+                measured = {}  # not an approach under Eq. 8's controller: no Eq. 9 measurement
             ev = self.contact_map.observe(
                 z, "collision", **measured,
                 expected=self._in_sequence(z), expected_gate=self.cfg.association_gate,

@@ -203,6 +203,15 @@ class ContactEvents:
         """The planned (re-timed) velocity at time t (the last sample at or before it) [m/s]."""
         return self._history(self._vel_hist, t)
 
+    def _anticipated(self, t: float) -> bool:
+        """Whether a collision's transition-phase controller (Eq. 8) was blended in at time
+        ``t`` (Eq. 10 weight > 0): an impact met without it was made by the base controller at
+        the plan's speed, not by the approach that Eq. 9 and its linear model describe (seed A
+        §3.4.1: the transition-phase controller's "relationship between impact force and
+        approach velocity")."""
+        blend = self.cfg.blend_s
+        return any(w.kind == "collision" and w.alpha(t, blend) > 0.0 for w in self._windows)
+
     def _approaching(self, event: Any) -> bool:
         """Whether a detected spike is a collision *ahead*: the force acted against the motion
         (F_m >= the jump threshold) and the tool was moving along the commanded motion
