@@ -191,3 +191,21 @@ def test_a_frozen_model_calibrates_on_its_training_window() -> None:
     assert math.isnan(c.gate.eps0) and not c.model.ready
     c.end_trial()
     assert c.model.ready and c.gate.eps0 > 0.0 and c.gate.r == pytest.approx(20.0 / c.gate.eps0)
+
+
+def test_eq4c_lambda_and_eq4b_stiffness_off_the_midpoint() -> None:
+    """Eq. 4c, λ = 1 − 1/(1 + e^(−r(ε − ε₀))), one 1/r either side of ε₀: 1 − 1/(1 + e^(−1))
+    = 0.2689 above it (a poor model: little feed-forward) and 0.7311 below; the midpoint's 0.5
+    would also hold with the sign inverted. Eq. 4b, K_p = K_free + (1 − λ)(K_max − K_free),
+    then gives the stiffness those λ mean: high for the poor model, low for the good one."""
+    from ccm.control.adaptive.logistic import LogisticGate
+
+    gate = LogisticGate(r=4.0, eps0=0.5)
+    assert gate(0.5) == 0.5
+    assert gate(0.75) == pytest.approx(1.0 - 1.0 / (1.0 + math.exp(-1.0)), rel=1e-14)
+    assert gate(0.75) == pytest.approx(0.268941, abs=1e-6)
+    assert gate(0.25) == pytest.approx(0.731059, abs=1e-6)
+    c = AVIC(k_free=300.0, k_max=3000.0, r=4.0, eps0=0.5, forward_model=FIXED)
+    assert c.stiffness_for(gate(0.75)) == pytest.approx(300.0 + 0.731059 * 2700.0, abs=1e-2)
+    assert c.stiffness_for(gate(0.25)) == pytest.approx(300.0 + 0.268941 * 2700.0, abs=1e-2)
+    assert (c.stiffness_for(0.0), c.stiffness_for(1.0)) == (3000.0, 300.0)
