@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -109,6 +109,20 @@ def check_file_name(key: str, value: Any) -> str:
             f"characters; got {shown}",
         )  # fmt: skip
     return value
+
+
+def leaves(node: Any, path: str = "") -> Iterator[tuple[str, Any, Any]]:
+    """``(dotted path, key, value)`` of every value of a plain config tree (dicts and lists,
+    as :func:`to_plain` gives) that is neither: ``a.b[2].c`` paths, the key the last dict or
+    list index."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            where = f"{path}.{k}" if path else str(k)
+            yield from leaves(v, where) if isinstance(v, dict | list) else [(where, k, v)]
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            where = f"{path}[{i}]"
+            yield from leaves(v, where) if isinstance(v, dict | list) else [(where, i, v)]
 
 
 def check_regular_file(key: str, path: Path) -> Path:

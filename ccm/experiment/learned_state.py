@@ -19,7 +19,7 @@ from typing import Any
 
 from ccm.control.base import Controller
 from ccm.control.registry import CONTROLLERS
-from ccm.core.errors import ConfigError, check_regular_file
+from ccm.core.errors import ConfigError, check_regular_file, leaves
 from ccm.core.records import write_json_atomic
 
 STATE_FORMAT = "ccm-learned-state"
@@ -102,7 +102,7 @@ def _load_state_file(path: Path, controller: Controller) -> int:
     trials = data.get("trials")
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 0 or "state" not in data:
         raise ConfigError("init_from", f"{path}: needs 'trials' (an integer >= 0) and 'state'")
-    _check_numbers(path, data["state"], "state")
+    _check_numbers(path, data["state"])
     try:
         controller.load_state_dict(data["state"])
     except ConfigError as exc:
@@ -117,18 +117,13 @@ def _load_state_file(path: Path, controller: Controller) -> int:
 STATE_LIMIT = 1e12
 
 
-def _check_numbers(path: Path, node: Any, where: str) -> None:
+def _check_numbers(path: Path, state: Any) -> None:
     """Every number in a state file finite and within ±:data:`STATE_LIMIT`, else one line
     naming the file and the entry."""
-    if isinstance(node, dict):
-        for k, v in node.items():
-            _check_numbers(path, v, f"{where}.{k}")
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            _check_numbers(path, v, f"{where}[{i}]")
-    elif isinstance(node, int | float) and not isinstance(node, bool):
-        if not (math.isfinite(node) and abs(node) <= STATE_LIMIT):
-            raise ConfigError(
-                "init_from", f"{path}: {where} = {node!r}: a learned state holds finite numbers "
-                f"within ±{STATE_LIMIT:g}; the file is damaged or not a ccm state",
-            )  # fmt: skip
+    for where, _, value in leaves(state, "state"):
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            if not (math.isfinite(value) and abs(value) <= STATE_LIMIT):
+                raise ConfigError(
+                    "init_from", f"{path}: {where} = {value!r}: a learned state holds finite "
+                    f"numbers within ±{STATE_LIMIT:g}; the file is damaged or not a ccm state",
+                )  # fmt: skip

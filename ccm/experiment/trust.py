@@ -20,12 +20,11 @@ import functools
 import logging
 import logging.handlers
 import re
-from collections.abc import Iterator
 from typing import Any
 
 from omegaconf import OmegaConf
 
-from ccm.core.errors import ConfigError
+from ccm.core.errors import ConfigError, leaves
 from ccm.experiment.user_configs import config_dir
 
 #: the ``hydra`` nodes whose callables Hydra or ``logging.config`` calls
@@ -61,19 +60,6 @@ def allowed_callable(name: str) -> bool:
     return name in package_targets() or name.startswith(_PLUGIN_PREFIXES) or _logging_class(name)
 
 
-def _callables(node: Any, path: str) -> Iterator[tuple[str, str]]:
-    """(key path, value) of every callable-naming key under a plain config tree."""
-    if isinstance(node, dict):
-        for k, v in node.items():
-            where = f"{path}.{k}"
-            if k in CALLABLE_KEYS and isinstance(v, str):
-                yield where, v
-            yield from _callables(v, where)
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield from _callables(v, f"{path}[{i}]")
-
-
 def check_targets(hydra: Any, trusted: bool) -> None:
     """Refuse a callable outside ccm, Hydra's plugins and ``logging`` (module docstring)."""
     if trusted:
@@ -81,24 +67,13 @@ def check_targets(hydra: Any, trusted: bool) -> None:
     for name in CALLING_NODES:
         node = OmegaConf.select(hydra, name, default=None)
         plain = OmegaConf.to_container(node, resolve=False) if node is not None else None
-        for key, value in _callables(plain, f"hydra.{name}"):
-            if not allowed_callable(value):
+        for key, leaf, value in leaves(plain, f"hydra.{name}"):
+            if leaf in CALLABLE_KEYS and isinstance(value, str) and not allowed_callable(value):
                 raise ConfigError(
                     key, f"{value!r} is not one of ccm's or Hydra's own callables; a config "
                     f"that runs other code needs ccm run {TRUST_FLAG} (configs are code: "
                     "README, 'Trusting a config')",
                 )  # fmt: skip
-
-
-def _env_keys(node: Any, path: str) -> Iterator[str]:
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield from _env_keys(v, f"{path}.{k}" if path else str(k))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield from _env_keys(v, f"{path}[{i}]")
-    elif isinstance(node, str) and _ENV.search(node):
-        yield path
 
 
 def check_no_env(cfg: Any, overrides: list[str]) -> None:
@@ -108,9 +83,9 @@ def check_no_env(cfg: Any, overrides: list[str]) -> None:
         key, _, value = ov.partition("=")
         if _ENV.search(value):
             _env_refused(key.lstrip("+~"))
-    plain = OmegaConf.to_container(cfg, resolve=False)
-    for key in _env_keys(plain, ""):
-        _env_refused(key)
+    for key, _, value in leaves(OmegaConf.to_container(cfg, resolve=False)):
+        if isinstance(value, str) and _ENV.search(value):
+            _env_refused(key)
 
 
 def _env_refused(key: str) -> None:
