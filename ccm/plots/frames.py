@@ -96,7 +96,7 @@ class AnimateSettings:
                 "--fps" if fps is not None else "animate.fps",
                 fps if fps is not None else d.get("fps", cls.fps),
                 *FPS_RANGE,
-            ),  # fmt: skip
+            ),
             width=size[0],
             height=size[1],
             force_scale_N_per_m=None
