@@ -7,8 +7,9 @@ import re
 from pathlib import Path
 
 import pytest
+from omegaconf import OmegaConf
 
-from ccm.cli import group_options
+from ccm.cli import config_dir, group_options
 from ccm.core.errors import ConfigError
 from ccm.reporting.claims import evaluate, load_claims, parse_claim
 
@@ -204,22 +205,54 @@ def test_a_bound_met_by_nothing_happening_needs_its_precondition() -> None:
     assert evaluate(shipped, [run(4.0)] * 3).verdict == "reproduced"
 
 
-def test_heavy_tailed_margins_are_judged_by_the_sign_test() -> None:
-    """Five seeds that all hold, one by far more: the t-interval would cross zero, the sign
-    test (p = 1/32) reproduces, and the report names the rule; four of five hold: p = 6/32,
-    partially."""
+def test_the_rule_is_the_claims_never_the_margins_shape() -> None:
+    """Issue #38: the rule is fixed in claims.yaml before the runs. Five seeds that all hold,
+    one by far more: the t-interval (the default) crosses zero, so *partially*, whatever
+    the margins' shape (until #38 Shapiro-Wilk switched such margins to a sign test). The
+    sign test's tail: P(X >= 5 | n = 5) = 1/32, P(X >= 4 | n = 5) = 6/32, P(X >= 9 | n = 10)
+    = 11/1024."""
     from ccm.reporting.claim_stats import decide, sign_test_p
 
     assert sign_test_p(5, 5) == pytest.approx(1 / 32) and sign_test_p(4, 5) == pytest.approx(6 / 32)
-    assert sign_test_p(0, 5) == 1.0
+    assert sign_test_p(9, 10) == pytest.approx(11 / 1024) and sign_test_p(0, 5) == 1.0
     c = parse_claim(LESS, "claims[0]")
+    assert c.test == "t"
     heavy = [(1.0, 1.01), (1.0, 1.02), (1.0, 1.01), (1.0, 1.02), (1.0, 9.0)]  # margins b − a
     v = evaluate(c, [_summary("e", a, b) for a, b in heavy])
-    assert v.verdict == "reproduced" and "sign test (5 of 5 hold" in v.ours
-    d = decide([0.01, 0.02, 0.01, -0.02, 8.0], lambda m: m > 0)
-    assert d.verdict == "partially" and d.rule.startswith("sign test (4 of 5 hold")
+    # mean 1.612, sd 3.571, t(4) = 2.776: the interval's lower end is 1.612 - 4.433 < 0
+    assert v.verdict == "partially" and "95 % t-interval" in v.ours and "sign" not in v.ours
     normal = decide([0.9, 1.1, 1.0, 1.2, 0.8], lambda m: m > 0)
     assert normal.verdict == "reproduced" and normal.rule == "95 % t-interval of the mean margin"
+    with pytest.raises(ValueError, match="test must be one of"):
+        decide([0.9, 1.1], lambda m: m > 0, "auto")
+
+
+def test_a_sign_test_on_fewer_runs_than_it_was_fixed_for_is_at_most_partial() -> None:
+    """5 of 5 holding gives p = 1/32 < 0.05, but the rule is fixed for 10 runs: a quick run
+    (or a five-seed sweep) cannot reproduce under it."""
+    from ccm.reporting.claim_stats import decide
+
+    d = decide([0.1, 0.2, 0.3, 0.4, 0.5], lambda m: m > 0, "sign")
+    assert d.verdict == "partially" and "5 of 5 hold, p = 0.0312" in d.rule
+    assert "fewer than the 10 runs" in d.rule
+    assert decide([0.1, -0.2, -0.3, -0.4, 0.5], lambda m: m > 0, "sign").verdict == "not reproduced"
+
+
+def test_every_sign_test_claim_has_ten_seeds() -> None:
+    """A shipped ``test: sign`` claim's experiment sweeps at least the 10 seeds the rule is
+    fixed for (issue #38: "use 10 seeds where a sign test decides")."""
+    from ccm.reporting.claim_stats import SIGN_TEST_RUNS
+
+    short = []
+    for c in load_claims(CLAIMS):
+        if c.test != "sign":
+            continue
+        cfg = OmegaConf.load(config_dir() / "experiment" / f"{c.experiment}.yaml")
+        seeds = str(OmegaConf.select(cfg, "hydra.sweeper.params.seed")).split(",")
+        if len(seeds) < SIGN_TEST_RUNS:
+            short.append((c.id, c.experiment, len(seeds)))
+    assert short == []
+    assert sum(c.test == "sign" for c in load_claims(CLAIMS)) >= 10
 
 
 def test_run_info_reference_reads_the_wall_clock_facts(tmp_path: Path) -> None:
@@ -277,8 +310,8 @@ def test_a_claim_can_fix_the_sign_test_as_its_rule() -> None:
     margins = [-0.322, -0.018, 0.163, 0.307, 0.437, 0.563, 0.693, 0.837, 1.018, 1.322]
     eight = [_summary("e", 1.0, 1.0 + m) for m in margins]
     assert evaluate(c, eight).verdict == "partially"
-    auto = evaluate(parse_claim(LESS, "claims[0]"), eight)  # normal: the t-interval decides
-    assert auto.verdict == "reproduced" and "95 % t-interval" in auto.ours
+    t_rule = evaluate(parse_claim(LESS, "claims[0]"), eight)  # the default: the t-interval
+    assert t_rule.verdict == "reproduced" and "95 % t-interval" in t_rule.ours
     with pytest.raises(ConfigError, match=r"claims\[0\]\.test"):
         parse_claim({**LESS, "test": "wilcoxon"}, "claims[0]")
 
@@ -286,7 +319,7 @@ def test_a_claim_can_fix_the_sign_test_as_its_rule() -> None:
 def test_identical_runs_are_one_run_not_a_sample() -> None:
     """Ten seeds of a deterministic protocol (seed A §4.1's noiseless world) give the same
     margin: the verdict is that one run's, and the report says so instead of a p-value."""
-    for test in ("auto", "sign"):
+    for test in ("t", "sign"):
         c = parse_claim({**LESS, "test": test}, "claims[0]")
         v = evaluate(c, [_summary("e", 1.0, 2.0)] * 10)
         assert v.verdict == "reproduced" and "10 runs are identical (deterministic)" in v.ours

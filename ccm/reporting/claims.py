@@ -22,8 +22,8 @@ Verdict over n seeds, from d = the per-seed margin (``b − a``, ``value − a/b
 the same with a / b; positive when the claim holds; ≥ 0 suffices for the bounds ``at_most``,
 ``at_least``, ``difference_at_most``, ``within`` and ``ratio_within``, which hold at
 equality): :func:`ccm.reporting.claim_stats.decide`,
-the 95 % t-interval of the mean margin, or a sign test where the margins are clearly not
-normal; the report says which rule decided. A reference may take the metric's magnitude
+the 95 % t-interval of the mean margin, or the sign test where the claim names it; the
+report says which rule decided. A reference may take the metric's magnitude
 (``abs: true``: a signed error against a bound); ``condition: run_info`` reads one of the run's
 scalar wall-clock facts that ``ccm report`` joins from run_info.json. Every run of the
 claim's experiment must be ``ok`` and give its values: otherwise the claim is **not
@@ -41,8 +41,9 @@ runs of one task of a sweep over tasks. A run that misses a requirement
 does not count as holding; if no run meets the requirements the claim is **not reproduced**,
 and if only some do, a *reproduced* verdict becomes **partially**.
 
-``test: sign`` fixes the verdict's rule to the sign test (written before the runs; see
-:mod:`ccm.reporting.claim_stats`), instead of ``auto``. ``diagnostic: true`` marks a claim
+``test: sign`` fixes the verdict's rule to the sign test over 10 seeds (written before the
+runs; see :mod:`ccm.reporting.claim_stats`), instead of the t-interval (``test: t``, the
+default). ``diagnostic: true`` marks a claim
 judged on a protocol other than the paper's (a robustness row, e.g. H1 under sensor noise
 beside seed A §4.1's noiseless one): the report shows its verdict but does not count it in
 the tally.
@@ -152,7 +153,7 @@ class Claim:
     discussion: str = ""  # the protocol note that discusses the outcome (experiments/*.md)
     requires: tuple[Requirement, ...] = ()
     task: str | None = None  # judge only the runs of this task (summary.json ``task``)
-    test: str = "auto"  # the verdict's rule over seeds: auto | sign (claim_stats.TESTS)
+    test: str = "t"  # the verdict's rule over seeds: t | sign (claim_stats.TESTS)
     diagnostic: bool = False  # a robustness row: shown in the report, not tallied
 
 
@@ -243,7 +244,7 @@ def parse_claim(d: Any, key: str) -> Claim:
     if not isinstance(reqs, list):
         raise ConfigError(f"{key}.requires", "must be a list of {condition, metric, bounds}")
     requires = tuple(_requirement(f"{key}.requires[{i}]", r) for i, r in enumerate(reqs))
-    test = d.get("test", "auto")
+    test = d.get("test", "t")
     if test not in TESTS:
         raise ConfigError(f"{key}.test", f"must be one of {', '.join(TESTS)}, got {test!r}")
     diagnostic = d.get("diagnostic", False)
