@@ -7,7 +7,7 @@ ARGS ?=
 # the experiment `make run` runs: the headline one (seed A H4, Fig. 16); make run EXP=smoke is quicker
 EXP ?= h4_collisions
 
-.PHONY: setup run test test-slow lint format bench clean reproduce-paper reproduce-paper-quick browser
+.PHONY: setup run test test-slow lint format bench clean reproduce-paper reproduce-paper-quick browser mutation
 
 setup: $(STAMP)
 
@@ -41,12 +41,12 @@ test-slow: setup  ## only the slow-marked checks (every experiment in fast mode,
 	$(BIN)/python -m pytest -q -m slow
 
 lint: setup
-	$(BIN)/ruff check ccm tests
-	$(BIN)/ruff format --check ccm tests
+	$(BIN)/ruff check ccm tests tools
+	$(BIN)/ruff format --check ccm tests tools
 
 format: setup
-	$(BIN)/ruff format ccm tests
-	$(BIN)/ruff check --fix ccm tests
+	$(BIN)/ruff format ccm tests tools
+	$(BIN)/ruff check --fix ccm tests tools
 
 # every paper experiment (claims in experiments/claims.yaml; the list is ccm.reporting.paper's) over the
 # seeds in its config's hydra.sweeper.params, two sweeps at a time, then ccm report
@@ -60,6 +60,10 @@ reproduce-paper-quick: setup  ## the same pipeline with seed 0 and short trials 
 
 bench: setup  ## speed table; also writes bench.json
 	$(BIN)/python -m ccm.bench --out bench.json --paper-dir $(PAPER_DIR)
+
+mutation: setup  ## mutation testing of the equations' packages (issue #39; not in CI; ARGS=target ...)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check 'mutmut==3.8.1'
+	$(BIN)/python tools/mutation.py $(ARGS)
 
 clean:
 	rm -rf $(VENV) outputs multirun bench.json .pytest_cache .ruff_cache

@@ -9,6 +9,7 @@ not the seeds' spread).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -113,3 +114,104 @@ def test_the_interval_is_students_t_with_the_sample_std() -> None:
     assert t95(5) == pytest.approx(2.776) and t95(2) == pytest.approx(12.706)
     mean, ci = mean_ci([1.0, 2.0, 3.0, 4.0, 5.0])
     assert mean == 3.0 and ci == pytest.approx(2.776 * 2.5**0.5 / 5**0.5)
+
+
+def test_the_t_quantile_table_ends_at_30_degrees_of_freedom() -> None:
+    """t(29) = 2.045 and t(30) = 2.042 are the table's last rows; 31 and more degrees of
+    freedom take the normal 1.96; one sample has no quantile. Two margins 1 and 3: mean 2,
+    half-width t(1) sqrt(2) / sqrt(2) = 12.706 (an interval, not the one-seed rule)."""
+    from ccm.reporting.claim_stats import mean_ci, t95
+
+    assert t95(30) == pytest.approx(2.045) and t95(31) == pytest.approx(2.042)
+    assert t95(32) == 1.96 and t95(500) == 1.96 and math.isnan(t95(1))
+    mean, ci = mean_ci([1, 3])
+    assert mean == 2.0 and ci == pytest.approx(12.706)
+    mean, ci = mean_ci([4.0])
+    assert mean == 4.0 and math.isnan(ci)
+
+
+def test_the_rule_text_names_the_case() -> None:
+    """One seed: its margin; two or more that differ: the t-interval; two or more identical:
+    one deterministic run (so even two equal seeds are not called an interval)."""
+    from ccm.reporting.claim_stats import decide
+
+    def holds(m: float) -> bool:
+        return m > 0
+
+    assert decide([0.5], holds).rule == "one seed: its margin"
+    assert decide([0.5, 0.7], holds).rule == "95 % t-interval of the mean margin"
+    two = decide([0.5, 0.5], holds)
+    assert two.verdict == "reproduced" and two.rule.startswith("the 2 runs are identical")
+    assert decide([-0.5, -0.5], holds, "sign").verdict == "not reproduced"
+    with pytest.raises(ValueError, match="no margins"):
+        decide([], holds)
+
+
+def test_the_sign_test_needs_more_than_half_for_partially() -> None:
+    """10 runs: 5 holding is no majority (not reproduced), 6 is (p = 0.377: partially), 9 is
+    p = 0.0107 < 0.05 (reproduced); P(X >= k) for k > n is refused, not 0."""
+    from ccm.reporting.claim_stats import decide, sign_test_p
+
+    def holds(m: float) -> bool:
+        return m > 0
+
+    def margins(k: int) -> list[float]:
+        return [0.1 * (i + 1) for i in range(k)] + [-0.1 * (i + 1) for i in range(10 - k)]
+
+    assert decide(margins(5), holds, "sign").verdict == "not reproduced"
+    six = decide(margins(6), holds, "sign")
+    assert six.verdict == "partially" and "p = 0.377" in six.rule
+    assert decide(margins(9), holds, "sign").verdict == "reproduced"
+    assert sign_test_p(6, 10) == pytest.approx(386 / 1024)
+    with pytest.raises(ValueError, match="need 0 <= k <= n, got k=11, n=10"):
+        sign_test_p(11, 10)
+
+
+def _runs(values: dict[str, dict[str, float]], n: int = SEEDS) -> list[dict[str, Any]]:
+    run = {"experiment": "e", "status": "ok", "conditions": values, "trials": []}
+    return [{**run, "seed": seed} for seed in range(n)]
+
+
+def test_a_changed_from_requirement_bounds_the_relative_change() -> None:
+    """``changed_from``: |a / b − 1| must lie in [at_least, at_most], both ends inclusive.
+    Against b = 4: a = 5 and a = 3 give 0.25 (the lower bound), 6 gives 0.5 (the upper one),
+    4.4 gives 0.1 and 8 gives 1.0 (outside); 10 against 8 is 0.25 (a ratio: the difference,
+    2, is outside); a reference of 0 cannot be changed from."""
+    req = [{"condition": "full", "metric": "d", "at_least": 0.25, "at_most": 0.5,
+            "changed_from": {"condition": "baseline", "metric": "d"}}]  # fmt: skip
+    claim = {"compare": "at_most", "value": 20.0, "b": None, "requires": req}
+    c = parse_claim({**BASE, **claim}, "claims[0]")
+
+    def judged(full: float, base: float) -> str:
+        values = {"full": {"peak_impact_force_N": 10.0, "d": full}, "baseline": {"d": base}}
+        return evaluate(c, _runs(values)).verdict
+
+    assert judged(5.0, 4.0) == judged(3.0, 4.0) == judged(6.0, 4.0) == "reproduced"
+    assert judged(4.4, 4.0) == judged(8.0, 4.0) == "not reproduced"
+    assert judged(10.0, 8.0) == "reproduced"
+    assert judged(0.1, 0.0) == "not reproduced"
+
+
+def test_the_reported_quantity_is_the_compared_one() -> None:
+    """The verdict's mean is the quantity the rule compares: a − b for less_than, a / b for
+    ratio_within, with its interval; one seed has none; a seed without values is missing."""
+    less = parse_claim({**BASE, "compare": "less_than"}, "claims[0]")
+    v = evaluate(less, _runs({"full": {"peak_impact_force_N": 8.0},
+                              "baseline": {"peak_impact_force_N": 50.0}}))  # fmt: skip
+    assert v.mean == pytest.approx(-42.0) and v.ci95 == 0.0 and v.n_seeds == SEEDS
+    ratio = parse_claim({**BASE, "compare": "ratio_within", "value": 0.2, "tolerance": 0.1},
+                        "claims[0]")  # fmt: skip
+    values = {"full": {"peak_impact_force_N": 8.0}, "baseline": {"peak_impact_force_N": 40.0}}
+    v = evaluate(ratio, _runs(values, 1))
+    assert v.mean == pytest.approx(0.2) and v.ci95 is None and v.verdict == "reproduced"
+    v = evaluate(ratio, _runs({**values, "baseline": {"peak_impact_force_N": 0.0}}))
+    assert v.verdict == "not measured" and v.n_seeds == 0 and v.mean is None
+
+
+def test_a_non_finite_metric_is_missing_not_a_value() -> None:
+    """A NaN or infinite metric makes the run's claim not measured (never a margin)."""
+    c = parse_claim({**BASE, "compare": "at_most", "value": 20.0, "b": None}, "claims[0]")
+    for bad in (math.nan, math.inf):
+        v = evaluate(c, _runs({"full": {"peak_impact_force_N": bad}}))
+        assert v.verdict == "not measured"
+    assert evaluate(c, _runs({"full": {"peak_impact_force_N": 5.0}})).verdict == "reproduced"

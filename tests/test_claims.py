@@ -3,6 +3,7 @@ experiments, and the verdict logic judges synthetic summaries as documented."""
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -345,3 +346,72 @@ def test_diagnostic_claims_are_flagged() -> None:
         assert (paper.compare, paper.a, paper.b, paper.value, paper.requires) == (
             robust.compare, robust.a, robust.b, robust.value, robust.requires
         )  # fmt: skip
+
+
+_AT_MOST = {**LESS, "compare": "at_most", "value": 1.0}
+_WITHIN = {**LESS, "compare": "within", "value": 1.0, "tolerance": 0.1}
+
+
+@pytest.mark.parametrize(
+    ("claim", "line"),
+    [
+        ("x", "c0: must be a mapping"),
+        ({**LESS, "source": ""}, "c0.source: is required"),
+        ({**LESS, "statement": None}, "c0.statement: is required"),
+        ({**LESS, "paper": "seed_c"}, "c0.paper: must be seed_a or seed_b, got 'seed_c'"),
+        ({**LESS, "compare": "below"}, "c0.compare: must be one of less_than, "),
+        ({**LESS, "a": "x.m"}, "c0.a: must be a mapping {condition, metric[, trial]}"),
+        ({**LESS, "b": None}, "c0.b: must be a mapping {condition, metric[, trial]}"),
+        ({**LESS, "a": {"condition": "x", "metric": "m", "trial": 0}}, "c0.a.trial: "),
+        ({**LESS, "a": {"condition": "x", "metric": "m", "trial": True}}, "c0.a.trial: "),
+        ({**_AT_MOST, "value": math.nan}, "c0.value: a finite number is required for at_most"),
+        ({**_WITHIN, "tolerance": 0}, "c0.tolerance: a fraction > 0 is required for within, got 0"),
+        ({**_WITHIN, "tolerance": math.inf}, "c0.tolerance: a fraction > 0 is required for within"),
+        ({**LESS, "tolerance": 0.1}, "c0.tolerance: is only used with compare: within or "
+                                     "ratio_within, not less_than"),
+        ({**LESS, "figures": "a.png"}, "c0.figures: must be a list of figure file names"),
+        ({**LESS, "figures": ["a.png", 3]}, "c0.figures: must be a list of figure file names"),
+        ({**LESS, "requires": {"condition": "x"}}, "c0.requires: must be a list of {condition, "
+                                                   "metric, bounds}"),
+        ({**LESS, "requires": ["x"]}, "c0.requires[0]: must be a mapping {condition, metric, "
+                                      "at_least and/or at_most}"),
+        ({**LESS, "requires": [{"condition": "x", "metric": "m"}]},
+         "c0.requires[0]: needs at_least and/or at_most"),
+        ({**LESS, "requires": [{"condition": "x", "metric": "m", "at_most": "1"}]},
+         "c0.requires[0].at_most: must be a finite number, got '1'"),
+        ({**LESS, "requires": [{"condition": "x", "metric": "m", "at_most": 1,
+                                "changed_from": "y"}]},
+         "c0.requires[0].changed_from: must be a mapping"),
+        ({**LESS, "test": "auto"}, "c0.test: must be one of t, sign, got 'auto'"),
+        ({**LESS, "diagnostic": 1}, "c0.diagnostic: must be true or false, got 1"),
+    ],
+)  # fmt: skip
+def test_a_bad_claim_gets_one_line_naming_its_key(claim: object, line: str) -> None:
+    """Every parse error is one line that names the claim's key and what is allowed."""
+    with pytest.raises(ConfigError) as err:
+        parse_claim(claim, "c0")
+    assert str(err.value).startswith(line) and "\n" not in str(err.value)
+
+
+def test_the_claims_file_errors_name_the_file_or_the_claim(tmp_path: Path) -> None:
+    """An unreadable file, a file without a claims list and a duplicate id each get one line
+    naming where; the parsed optional fields keep their values."""
+    missing = tmp_path / "none.yaml"
+    with pytest.raises(ConfigError, match=rf"^{re.escape(str(missing))}: cannot read claims: "):
+        load_claims(missing)
+    empty = tmp_path / "empty.yaml"
+    empty.write_text("claims: []\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match=rf"^{re.escape(str(empty))}:claims: must be a non-empty"):
+        load_claims(empty)
+    import yaml
+
+    two = tmp_path / "two.yaml"
+    one = {**LESS, "note": "n", "discussion": "experiments/x.md", "figures": ["f.png"]}
+    two.write_text(yaml.safe_dump({"claims": [one, one]}), encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"^claims\[1\]\.id: duplicate id 'c'$"):
+        load_claims(two)
+    c = parse_claim(one, "c0")
+    assert (c.note, c.discussion, c.figures, c.source, c.statement, c.paper_value) == (
+        "n", "experiments/x.md", ("f.png",), "Fig. 1", "x below y", "q"
+    )  # fmt: skip
+    assert (c.paper, c.task, c.test, c.diagnostic) == ("seed_b", None, "t", False)

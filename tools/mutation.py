@@ -1,0 +1,177 @@
+"""Mutation testing of the packages that hold the seeds' equations (issue #39 item 1).
+
+``make mutation`` (or ``python tools/mutation.py [TARGET ...]``) runs mutmut 3 once per
+target, each in its own copy of the tracked files under ``outputs/mutation/<target>`` (the
+working tree is never touched), and writes ``outputs/mutation/mutation.json`` and a
+Markdown table of killed / survived / no-test / timeout counts per target, for
+``docs/testing.md``. A target's mutants run only the tests that mutmut's stats pass saw
+calling the mutated function, drawn from the target's test files below (the whole default
+suite for a mutant of a controller would take hours on 2 cores).
+
+Not part of CI (the issue: "it does not have to run in CI"); it takes minutes for the small
+targets and hours for ``control``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import shutil
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "outputs" / "mutation"
+
+#: target -> (glob of the files mutated, the test files whose tests may kill its mutants)
+TARGETS: dict[str, tuple[str, list[str]]] = {
+    "reporting-claims": (
+        "ccm/reporting/claim*.py",
+        ["tests/test_claims.py", "tests/test_report.py", "tests/test_claim_pins.py"],
+    ),
+    "sensor": (
+        "ccm/sim/sensor.py",
+        [
+            "tests/test_sensor_faults.py",
+            "tests/test_pymunk_physics.py",
+            "tests/test_reliability.py",
+        ],
+    ),  # fmt: skip
+    "metrics": (
+        "ccm/metrics/*",
+        [
+            "tests/test_metrics.py",
+            "tests/test_contact_metrics.py",
+            "tests/test_mode_metrics.py",
+            "tests/test_adaptation_metrics.py",
+            "tests/test_rail_metrics.py",
+            "tests/test_metric_pins.py",
+        ],
+    ),  # fmt: skip
+    "learn": (
+        "ccm/learn/*",
+        [
+            "tests/test_igmm.py",
+            "tests/test_forward_model.py",
+            "tests/test_modes.py",
+            "tests/test_contacts.py",
+            "tests/test_collisions.py",
+            "tests/test_gp_force.py",
+            "tests/test_svm_gp.py",
+            "tests/test_region_c.py",
+        ],
+    ),  # fmt: skip
+    "control": (
+        "ccm/control/*",
+        [
+            "tests/test_avic.py",
+            "tests/test_impedance.py",
+            "tests/test_modal.py",
+            "tests/test_anticipation.py",
+            "tests/test_retiming.py",
+            "tests/test_contact_regions.py",
+            "tests/test_baselines.py",
+            "tests/test_admittance.py",
+            "tests/test_mpc_terms.py",
+            "tests/test_gp_mpc.py",
+            "tests/test_mrac_kernels.py",
+        ],
+    ),  # fmt: skip
+}
+_LINE = re.compile(r"^\s+(?P<name>\S+__mutmut_\d+): (?P<status>.+)$")
+
+
+def _copy_tree(dest: Path) -> None:
+    """The tracked files of the repository (as a clean checkout has them) into ``dest``."""
+    files = subprocess.run(
+        ["git", "ls-files", "-z"], cwd=ROOT, check=True, capture_output=True
+    ).stdout.split(b"\0")
+    if dest.exists():
+        shutil.rmtree(dest)
+    for raw in filter(None, files):
+        src = ROOT / raw.decode()
+        if src.is_file():
+            (dest / raw.decode()).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / raw.decode())
+
+
+def _configure(dest: Path, glob: str, tests: list[str]) -> None:
+    """Append mutmut's settings to the copy's pyproject.toml."""
+    also = ["configs/", "hydra_plugins/", "experiments/", "README.md", "Makefile", "docs/"]
+    text = (dest / "pyproject.toml").read_text()
+    text += (
+        "\n[tool.mutmut]\n"
+        f'source_paths = ["ccm"]\nonly_mutate = ["{glob}"]\n'
+        f"also_copy = {json.dumps(also)}\n"
+        f"pytest_add_cli_args_test_selection = {json.dumps(tests)}\n"
+        'pytest_add_cli_args = ["-q", "-p", "no:cacheprovider", "-m", "not slow"]\n'
+    )
+    (dest / "pyproject.toml").write_text(text)
+
+
+def run_target(name: str, jobs: int) -> dict:
+    """Mutate one target and count its mutants by status."""
+    glob, tests = TARGETS[name]
+    dest = OUT / name
+    _copy_tree(dest)
+    _configure(dest, glob, tests)
+    mutmut = [sys.executable, "-m", "mutmut"]
+    t0 = time.perf_counter()
+    with open(OUT / f"{name}.log", "w") as log:
+        subprocess.run([*mutmut, "run", "--max-children", str(jobs)], cwd=dest, stdout=log,
+                       stderr=subprocess.STDOUT, check=False)  # fmt: skip
+    res = subprocess.run(
+        [*mutmut, "results", "--all", "true"], cwd=dest, capture_output=True, text=True, check=False
+    )
+    status = {m["name"]: m["status"] for m in map(_LINE.match, res.stdout.splitlines()) if m}
+    counts = Counter(status.values())
+    survivors = sorted(k for k, v in status.items() if v != "killed")
+    scored = counts["killed"] + counts["survived"]
+    return {
+        "files": glob, "tests": tests, "wall_s": round(time.perf_counter() - t0, 1),
+        "mutants": len(status), "counts": dict(counts),
+        "killed_frac": round(counts["killed"] / scored, 4) if scored else None,
+        "not_killed": survivors,
+    }  # fmt: skip
+
+
+def table(results: dict[str, dict]) -> str:
+    """The Markdown table of docs/testing.md."""
+    rows = ["| target | files | mutants | killed | survived | no tests | other | killed % |",
+            "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for name, r in results.items():
+        c = r["counts"]
+        other = r["mutants"] - c.get("killed", 0) - c.get("survived", 0) - c.get("no tests", 0)
+        frac = "–" if r["killed_frac"] is None else f"{100 * r['killed_frac']:.1f}"
+        cells = [name, f"`{r['files']}`", r["mutants"], c.get("killed", 0),
+                 c.get("survived", 0), c.get("no tests", 0), other, frac]  # fmt: skip
+        rows.append("| " + " | ".join(str(x) for x in cells) + " |")
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("targets", nargs="*", help=f"default: all of {', '.join(TARGETS)}")
+    p.add_argument("--jobs", type=int, default=2, help="parallel mutants (default 2)")
+    args = p.parse_args(argv)
+    unknown = [t for t in args.targets if t not in TARGETS]
+    if unknown:
+        print(f"mutation: unknown target {unknown[0]!r}; allowed: {', '.join(TARGETS)}")
+        return 2
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / "mutation.json"
+    results = json.loads(path.read_text()) if path.exists() else {}
+    for name in args.targets or list(TARGETS):
+        results[name] = run_target(name, args.jobs)
+        path.write_text(json.dumps(results, indent=1) + "\n")
+        print(table({name: results[name]}).splitlines()[-1], flush=True)
+    print(table(results))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
