@@ -215,3 +215,51 @@ def test_a_non_finite_metric_is_missing_not_a_value() -> None:
         v = evaluate(c, _runs({"full": {"peak_impact_force_N": bad}}))
         assert v.verdict == "not measured"
     assert evaluate(c, _runs({"full": {"peak_impact_force_N": 5.0}})).verdict == "reproduced"
+
+
+def test_the_report_line_spells_out_what_was_compared() -> None:
+    """The verdict's text, which the report prints, names the compared quantity with its
+    interval, both values, the holding runs, the rule and each requirement as written:
+    ``a − b`` for less_than, ``a / b`` for a ratio, ``|a| (trial k)`` for a trial's
+    magnitude, bounds with their infinite sides left out."""
+    req = [{"condition": "full", "metric": "d", "at_least": 0.25,
+            "changed_from": {"condition": "baseline", "metric": "d"}},
+           {"condition": "full", "metric": "d", "at_most": 9.0}]  # fmt: skip
+    less = parse_claim({**BASE, "compare": "less_than", "requires": req}, "claims[0]")
+    base = {"peak_impact_force_N": 50.0, "d": 4.0}
+    values = [{"full": {"peak_impact_force_N": f, "d": 5.0}, "baseline": base} for f in (8.0, 10.0)]
+    runs = [{"experiment": "e", "status": "ok", "conditions": v, "trials": []} for v in values]
+    v = evaluate(less, runs)
+    assert v.ours == (
+        "full.peak_impact_force_N − baseline.peak_impact_force_N = -41 ± 13 (n = 2) "
+        "(full.peak_impact_force_N = 9, baseline.peak_impact_force_N = 50); holds in 2 of 2 "
+        "runs; rule: 95 % t-interval of the mean margin; requires "
+        "0.25 <= |full.d / baseline.d − 1|, full.d <= 9: met in 2 of 2"
+    )  # fmt: skip
+    assert v.ci95 == pytest.approx(12.706) and v.n_seeds == 2
+    ratio = parse_claim({**BASE, "compare": "ratio_at_most", "value": 0.5}, "claims[0]")
+    assert evaluate(ratio, runs[:1]).ours.startswith(
+        "full.peak_impact_force_N / baseline.peak_impact_force_N = 0.16 (n = 1, one seed: "
+        "no interval) (full.peak_impact_force_N = 8, baseline.peak_impact_force_N = 50)"
+    )  # fmt: skip
+    trial = parse_claim({**BASE, "compare": "at_most", "value": 1.0, "b": None,
+                         "a": {"condition": "full", "metric": "err", "trial": 3, "abs": True}},
+                        "claims[0]")  # fmt: skip
+    assert str(trial.a) == "|full.err| (trial 3)" and trial.b is None
+    assert (less.value, less.tolerance, less.note, less.discussion) == (None, None, "", "")
+
+
+def test_a_failed_run_without_a_task_counts_against_every_task() -> None:
+    """A sweep over tasks: a claim of task T is judged on T's runs; a failed run that does not
+    say its task (it failed before writing it) may have been T's, so the claim is not
+    measured; an ok run of another task, or a failed run that names another task, is not
+    T's. A run without the claim's condition is missing, not an error."""
+    c = parse_claim({**BASE, "compare": "at_most", "value": 20.0, "b": None, "task": "T"}, "c")
+    ok = {"experiment": "e", "status": "ok", "task": "T", "trials": [],
+          "conditions": {"full": {"peak_impact_force_N": 5.0}}}  # fmt: skip
+    other = {**ok, "task": "U", "conditions": {"full": {"peak_impact_force_N": 50.0}}}
+    assert evaluate(c, [ok, other]).verdict == "reproduced"
+    assert evaluate(c, [ok, {"experiment": "e", "status": "failed", "task": "U"}]).n_seeds == 1
+    v = evaluate(c, [ok, {"experiment": "e", "status": "failed"}])
+    assert v.verdict == "not measured" and v.ours.startswith("1 of 2 runs missing")
+    assert evaluate(c, [{**ok, "conditions": {}}]).verdict == "not measured"

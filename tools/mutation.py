@@ -36,6 +36,7 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
     "sensor": (
         "ccm/sim/sensor.py",
         [
+            "tests/test_sensor_model.py",
             "tests/test_sensor_faults.py",
             "tests/test_pymunk_physics.py",
             "tests/test_reliability.py",
