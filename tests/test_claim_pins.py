@@ -263,3 +263,31 @@ def test_a_failed_run_without_a_task_counts_against_every_task() -> None:
     v = evaluate(c, [ok, {"experiment": "e", "status": "failed"}])
     assert v.verdict == "not measured" and v.ours.startswith("1 of 2 runs missing")
     assert evaluate(c, [{**ok, "conditions": {}}]).verdict == "not measured"
+
+
+def test_labels_equality_and_missing_trials() -> None:
+    """A ratio bound is strict (a ratio equal to it does not hold) while a difference bound
+    holds at equality; each comparison is labelled by its quantity; a trial that a run does
+    not have, or a run without the claim's task, gives no value."""
+    one = {"full": {"peak_impact_force_N": 8.0}, "baseline": {"peak_impact_force_N": 40.0}}
+    ratio = parse_claim({**BASE, "compare": "ratio_at_most", "value": 0.2}, "c")
+    assert evaluate(ratio, _runs(one)).verdict == "not reproduced"  # 0.2 is not < 0.2
+    diff = parse_claim({**BASE, "compare": "difference_at_most", "value": -32.0}, "c")
+    v = evaluate(diff, _runs(one))
+    assert v.verdict == "reproduced"  # −32 <= −32
+    assert v.ours.startswith("full.peak_impact_force_N − baseline.peak_impact_force_N = -32 ")
+    within = parse_claim({**BASE, "compare": "ratio_within", "value": 0.2, "tolerance": 0.5}, "c")
+    assert evaluate(within, _runs(one)).ours.startswith("full.peak_impact_force_N / baseline.")
+    at_most = parse_claim({**BASE, "compare": "at_most", "value": 9.0, "b": None}, "c")
+    v = evaluate(at_most, _runs(one, 1))
+    assert v.ours.startswith("full.peak_impact_force_N = 8 (n = 1, one seed: no interval); ")
+    trial = parse_claim({**BASE, "compare": "at_most", "value": 9.0, "b": None,
+                         "a": {"condition": "full", "metric": "f", "trial": 2}}, "c")  # fmt: skip
+    rows = [{"condition": "full", "trial": 1, "f": 1.0}]
+    run = {"experiment": "e", "status": "ok", "conditions": {}, "trials": rows}
+    v = evaluate(trial, [run])
+    assert (v.verdict, v.ours, v.n_seeds) == ("not measured", "–", 0)
+    assert evaluate(trial, [{**run, "trials": [*rows, {**rows[0], "trial": 2}]}]).mean == 1.0
+    tasked = parse_claim({**BASE, "compare": "at_most", "value": 9.0, "b": None, "task": "T"}, "c")
+    untasked_ok = {"experiment": "e", "status": "ok", "conditions": one, "trials": []}
+    assert evaluate(tasked, [untasked_ok]).verdict == "not measured"

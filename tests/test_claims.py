@@ -362,8 +362,21 @@ _WITHIN = {**LESS, "compare": "within", "value": 1.0, "tolerance": 0.1}
         ({**LESS, "compare": "below"}, "c0.compare: must be one of less_than, "),
         ({**LESS, "a": "x.m"}, "c0.a: must be a mapping {condition, metric[, trial]}"),
         ({**LESS, "b": None}, "c0.b: must be a mapping {condition, metric[, trial]}"),
-        ({**LESS, "a": {"condition": "x", "metric": "m", "trial": 0}}, "c0.a.trial: "),
-        ({**LESS, "a": {"condition": "x", "metric": "m", "trial": True}}, "c0.a.trial: "),
+        ({**LESS, "a": {"condition": "x", "metric": "m", "trial": 0}},
+         "c0.a.trial: must be a trial number >= 1, got 0"),
+        ({**LESS, "a": {"condition": "x", "metric": "m", "trial": True}},
+         "c0.a.trial: must be a trial number >= 1, got True"),
+        ({**LESS, "a": {"condition": "", "metric": "m"}},
+         "c0.a.condition: is required (a non-empty string)"),
+        ({**LESS, "b": {"condition": "y", "metric": 3}},
+         "c0.b.metric: is required (a non-empty string)"),
+        ({**LESS, "a": {"condition": "x", "metric": "m", "abs": "yes"}},
+         "c0.a.abs: must be true or false, got 'yes'"),
+        ({**LESS, "a": {"condition": "x", "metric": "m", "mean": 1}}, "c0.a.mean: unknown key"),
+        ({**LESS, "requires": [{"condition": "x", "metric": "m", "at_most": 1, "below": 2}]},
+         "c0.requires[0].below: unknown key"),
+        ({**LESS, "requires": [{"condition": "", "metric": "m", "at_most": 1}]},
+         "c0.requires[0].condition: is required"),
         ({**_AT_MOST, "value": math.nan}, "c0.value: a finite number is required for at_most"),
         ({**_WITHIN, "tolerance": 0}, "c0.tolerance: a fraction > 0 is required for within, got 0"),
         ({**_WITHIN, "tolerance": math.inf}, "c0.tolerance: a fraction > 0 is required for within"),
@@ -400,15 +413,23 @@ def test_the_claims_file_errors_name_the_file_or_the_claim(tmp_path: Path) -> No
     with pytest.raises(ConfigError, match=rf"^{re.escape(str(missing))}: cannot read claims: "):
         load_claims(missing)
     empty = tmp_path / "empty.yaml"
-    empty.write_text("claims: []\n", encoding="utf-8")
-    with pytest.raises(ConfigError, match=rf"^{re.escape(str(empty))}:claims: must be a non-empty"):
-        load_claims(empty)
+    for text in ("claims: []\n", "- a\n- b\n"):
+        empty.write_text(text, encoding="utf-8")
+        with pytest.raises(ConfigError, match=rf"^{re.escape(str(empty))}:claims: must be a non"):
+            load_claims(empty)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("claims: [\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match=rf"^{re.escape(str(bad))}: cannot read claims: \S"):
+        load_claims(bad)
     import yaml
 
     two = tmp_path / "two.yaml"
     one = {**LESS, "note": "n", "discussion": "experiments/x.md", "figures": ["f.png"]}
     two.write_text(yaml.safe_dump({"claims": [one, one]}), encoding="utf-8")
     with pytest.raises(ConfigError, match=r"^claims\[1\]\.id: duplicate id 'c'$"):
+        load_claims(two)
+    two.write_text(yaml.safe_dump({"claims": [one, {**one, "paper": "x"}]}), encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"^claims\[1\]\.paper: must be seed_a or seed_b"):
         load_claims(two)
     c = parse_claim(one, "c0")
     assert (c.note, c.discussion, c.figures, c.source, c.statement, c.paper_value) == (

@@ -157,3 +157,37 @@ def test_biases_may_be_negative_and_bounds_are_inclusive() -> None:
     assert FTSensor(None, 3, 3).config == SensorConfig.ideal(3, 3)
     with pytest.raises(ValueError, match=r"sensor config has dims \(2, 1\), expected \(3, 1\)"):
         FTSensor(SensorConfig.ideal(), force_dim=3, torque_dim=1)
+
+
+def test_a_bias_on_one_part_alone_is_measured() -> None:
+    """A force bias without a torque bias (and the reverse) still makes the sensor non-ideal."""
+    f, t = _sensor(force_bias=F_BIAS).measure(F_TRUE, T_TRUE)
+    np.testing.assert_array_equal(f, F_TRUE + F_BIAS)
+    np.testing.assert_array_equal(t, T_TRUE)
+    f, t = _sensor(torque_bias=T_BIAS).measure(F_TRUE, T_TRUE)
+    np.testing.assert_array_equal(f, F_TRUE)
+    np.testing.assert_array_equal(t, T_TRUE + T_BIAS)
+
+
+def test_small_faults_are_faults() -> None:
+    """A 0.5 N spike and a one-step dropout act; with faults and a 3-axis torque, each call
+    draws 3 force and 3 torque normals; a faulty sensor needs its generator."""
+    spike = {"spike_prob": 1.0, "spike_N": 0.5}
+    t_std = [0.01, 0.02, 0.03]
+    cfg = SensorConfig.from_values(F_STD, t_std, force_dim=3, torque_dim=3, **spike)
+    s = FTSensor(cfg, force_dim=3, torque_dim=3)
+    s.reset(np.random.default_rng(8))
+    oracle = np.random.default_rng(8)
+    f, t = s.measure(F_TRUE, np.zeros(3))
+    zf, zt = oracle.normal(0.0, 1.0, 3), oracle.normal(0.0, 1.0, 3)
+    oracle.random(2)
+    signs = oracle.choice((-1.0, 1.0), 3)
+    np.testing.assert_allclose(f, F_TRUE + F_STD * zf + 0.5 * signs, atol=1e-14)
+    np.testing.assert_allclose(t, np.array([0.01, 0.02, 0.03]) * zt, atol=1e-15)
+    one = _sensor(force_noise_std=F_STD, dropout_prob=1.0, dropout_steps=1)
+    one.reset(np.random.default_rng(2))
+    r = [one.measure(F_TRUE, T_TRUE)[0] for _ in range(3)]
+    np.testing.assert_array_equal(r[1], r[0])  # held for one call
+    assert not np.array_equal(r[2], r[0])  # then measured (and held) again
+    with pytest.raises(RuntimeError, match=r"^FTSensor\.reset\(rng\) must be called before a fau"):
+        _sensor(spike_prob=0.5, spike_N=1.0).measure(F_TRUE, T_TRUE)
