@@ -191,7 +191,9 @@ def test_small_faults_are_faults() -> None:
     assert not np.array_equal(r[2], r[0])  # then measured (and held) again
     with pytest.raises(RuntimeError, match=r"^FTSensor\.reset\(rng\) must be called before a fau"):
         _sensor(spike_prob=0.5, spike_N=1.0).measure(F_TRUE, T_TRUE)
-    with pytest.raises(RuntimeError, match=r"must be called before a noisy measure\(\)$"):
+    with pytest.raises(RuntimeError, match=r"^FTSensor\.reset\(rng\) must be called before a noi"):
         _sensor(force_noise_std=0.1, spike_prob=0.5, spike_N=1.0).measure(F_TRUE, T_TRUE)
     with pytest.raises(ConfigError, match=r"^sim\.sensor: "):
         SensorConfig.from_mapping("noisy")
+    with pytest.raises(ConfigError, match=r"^arm\.ft\.force_bias: "):
+        SensorConfig.from_mapping({"force_bias": "x"}, prefix="arm.ft")
