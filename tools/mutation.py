@@ -51,6 +51,8 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
             "tests/test_adaptation_metrics.py",
             "tests/test_rail_metrics.py",
             "tests/test_metric_pins.py",
+            "tests/test_mpc_metrics_oracle.py",
+            "tests/test_head_to_head.py",
             "tests/test_contact_measurement.py",
             "tests/test_mpc_contact_claims.py",
             "tests/test_polishing_claims.py",
