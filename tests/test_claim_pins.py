@@ -10,7 +10,6 @@ not the seeds' spread).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from typing import Any
 
 import pytest
@@ -28,14 +27,23 @@ BASE: dict[str, Any] = {
 }  # fmt: skip
 
 
+def _runs(values: dict[str, dict[str, float]], n: int = SEEDS) -> list[dict[str, Any]]:
+    """``n`` ok runs of experiment ``e`` (seeds 0..n-1) that all measured ``values``."""
+    run = {"experiment": "e", "status": "ok", "conditions": values, "trials": []}
+    return [{**run, "seed": seed} for seed in range(n)]
+
+
+def _positive(m: float) -> bool:
+    """A strict claim's test of a margin."""
+    return m > 0
+
+
 def verdict(claim: dict[str, Any], full: float, baseline: float = 50.0) -> str:
     """The verdict of ``claim`` over :data:`SEEDS` ok runs that all measured ``full`` and
     ``baseline`` as the two conditions' ``peak_impact_force_N``."""
     c = parse_claim({**BASE, **claim}, "claims[0]")
     values = {"full": {"peak_impact_force_N": full}, "baseline": {"peak_impact_force_N": baseline}}
-    run = {"experiment": "e", "status": "ok", "conditions": values, "trials": []}
-    runs: Sequence[dict[str, Any]] = [{**run, "seed": seed} for seed in range(SEEDS)]
-    return evaluate(c, runs).verdict
+    return evaluate(c, _runs(values)).verdict
 
 
 @pytest.mark.parametrize(
@@ -135,16 +143,13 @@ def test_the_rule_text_names_the_case() -> None:
     one deterministic run (so even two equal seeds are not called an interval)."""
     from ccm.reporting.claim_stats import decide
 
-    def holds(m: float) -> bool:
-        return m > 0
-
-    assert decide([0.5], holds).rule == "one seed: its margin"
-    assert decide([0.5, 0.7], holds).rule == "95 % t-interval of the mean margin"
-    two = decide([0.5, 0.5], holds)
+    assert decide([0.5], _positive).rule == "one seed: its margin"
+    assert decide([0.5, 0.7], _positive).rule == "95 % t-interval of the mean margin"
+    two = decide([0.5, 0.5], _positive)
     assert two.verdict == "reproduced" and two.rule.startswith("the 2 runs are identical")
-    assert decide([-0.5, -0.5], holds, "sign").verdict == "not reproduced"
+    assert decide([-0.5, -0.5], _positive, "sign").verdict == "not reproduced"
     with pytest.raises(ValueError, match="no margins"):
-        decide([], holds)
+        decide([], _positive)
 
 
 def test_the_sign_test_needs_more_than_half_for_partially() -> None:
@@ -152,24 +157,16 @@ def test_the_sign_test_needs_more_than_half_for_partially() -> None:
     p = 0.0107 < 0.05 (reproduced); P(X >= k) for k > n is refused, not 0."""
     from ccm.reporting.claim_stats import decide, sign_test_p
 
-    def holds(m: float) -> bool:
-        return m > 0
-
     def margins(k: int) -> list[float]:
         return [0.1 * (i + 1) for i in range(k)] + [-0.1 * (i + 1) for i in range(10 - k)]
 
-    assert decide(margins(5), holds, "sign").verdict == "not reproduced"
-    six = decide(margins(6), holds, "sign")
+    assert decide(margins(5), _positive, "sign").verdict == "not reproduced"
+    six = decide(margins(6), _positive, "sign")
     assert six.verdict == "partially" and "p = 0.377" in six.rule
-    assert decide(margins(9), holds, "sign").verdict == "reproduced"
+    assert decide(margins(9), _positive, "sign").verdict == "reproduced"
     assert sign_test_p(6, 10) == pytest.approx(386 / 1024)
     with pytest.raises(ValueError, match="need 0 <= k <= n, got k=11, n=10"):
         sign_test_p(11, 10)
-
-
-def _runs(values: dict[str, dict[str, float]], n: int = SEEDS) -> list[dict[str, Any]]:
-    run = {"experiment": "e", "status": "ok", "conditions": values, "trials": []}
-    return [{**run, "seed": seed} for seed in range(n)]
 
 
 def test_a_changed_from_requirement_bounds_the_relative_change() -> None:
