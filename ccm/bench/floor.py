@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from ccm.core.errors import to_plain
+from ccm.core.records import read_json_object
 
 
 @dataclass(frozen=True)
@@ -222,9 +223,8 @@ def scene_costs(configs: Mapping[str, Path], budget_s: float = 1.5) -> dict[str,
 def paper_floor(paper_dir: Path, cores: int = 2, budget_s: float = 1.5) -> dict[str, Any] | None:
     """The paper-floor table of the run in ``paper_dir`` (module docstring), or None without
     its ``paper_timing.json``."""
-    try:
-        timing = json.loads((paper_dir / "paper_timing.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    timing = read_json_object(paper_dir / "paper_timing.json")
+    if timing is None:
         return None
     cpu_s = timing.get("sweeps_cpu_s") or {}
     work: dict[str, list[RunWork]] = {}

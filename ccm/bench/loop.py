@@ -21,6 +21,7 @@ from typing import Any
 
 from ccm.bench.components import components as _components
 from ccm.bench.dynamics import bench_torques
+from ccm.core.records import read_json_object
 
 TASKS = ("smoke", "multi_spring", "porridge_stirring", "slide_surfaces_2d")
 #: × real time targets per (task, controller): issue #20 (multi_spring; issue #2 had 50 for
@@ -146,11 +147,8 @@ def print_loop_rows(rows: Sequence[dict[str, Any]]) -> None:
 def paper_cpu(paper_dir: Path) -> dict[str, Any] | None:
     """Wall and CPU time per experiment of the last ``make reproduce-paper`` into
     ``paper_dir`` (its ``paper_timing.json``; CPU recorded since issue #20), or None."""
-    try:
-        timing = json.loads((paper_dir / "paper_timing.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(timing, dict):
+    timing = read_json_object(paper_dir / "paper_timing.json")
+    if timing is None:
         return None
     return {
         "paper_dir": str(paper_dir),

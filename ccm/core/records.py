@@ -74,6 +74,16 @@ def _umask() -> int:
     return mask
 
 
+def read_json_object(path: Path) -> dict[str, Any] | None:
+    """The JSON object (dict) stored in ``path``; None if the file is missing or unreadable, is
+    not UTF-8 JSON, or holds another JSON value: a record that cannot be used."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):  # ValueError: bad JSON, or bytes that are not UTF-8
+        return None
+    return data if isinstance(data, dict) else None
+
+
 def write_json_atomic(path: Path, data: Any, compact: bool = False) -> None:
     """Atomically write ``data`` as JSON (keys in insertion order, strict: no NaN): indented,
     or ``compact`` (no whitespace: learned states are mostly long number arrays, and

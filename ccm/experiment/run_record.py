@@ -37,7 +37,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from ccm.core.errors import to_plain
-from ccm.core.records import write_atomic
+from ccm.core.records import read_json_object, write_atomic
 
 LOCK_NAME = ".lock"
 HASH_NAME = "config.sha256"
@@ -198,11 +198,8 @@ def _refusal(run_dir: Path, foreign: list[str]) -> str:
 
 def ok_summary(run_dir: Path) -> dict | None:
     """The summary of a run directory that already holds an ``ok`` run, else None."""
-    try:
-        summary = json.loads((Path(run_dir) / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):  # bad JSON, or bytes that are not UTF-8
-        return None
-    return summary if isinstance(summary, dict) and summary.get("status") == "ok" else None
+    summary = read_json_object(Path(run_dir) / "summary.json")
+    return summary if summary is not None and summary.get("status") == "ok" else None
 
 
 def stored_digest(run_dir: Path, cfg: DictConfig) -> str | None:

@@ -13,13 +13,13 @@ into its directory; it leaves a marker in ``<sweep dir>/.refused/`` instead, whi
 from __future__ import annotations
 
 import hashlib
-import json
 import shutil
 from pathlib import Path
 from typing import Any
 
 from hydra.experimental.callback import Callback
 
+from ccm.core.records import read_json_object
 from ccm.experiment.run_record import REPLACED
 
 #: Job directories of the last sweep in this process that did not end ok.
@@ -44,10 +44,8 @@ def sweep_failures(sweep_dir: Path) -> list[str]:
     for job in sorted(p.parent for p in Path(sweep_dir).glob("*/.hydra")):
         if REPLACED in job.name:
             continue
-        try:
-            status = json.loads((job / "summary.json").read_text(encoding="utf-8")).get("status")
-        except (OSError, ValueError):  # bad JSON, or bytes that are not UTF-8
-            status = None
+        summary = read_json_object(job / "summary.json")
+        status = None if summary is None else summary.get("status")
         if status != "ok":
             bad.append(str(job))
     refused = Path(sweep_dir) / REFUSED_DIR

@@ -15,7 +15,6 @@ The wall time of every sweep and of the whole pipeline goes to ``<out>/paper_tim
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -24,7 +23,7 @@ from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from ccm.core.records import write_json_atomic
+from ccm.core.records import read_json_object, write_json_atomic
 from ccm.experiment.config_check import check_output_dir
 from ccm.experiment.user_configs import group_options
 
@@ -79,11 +78,8 @@ def _record_timing(path: Path, entry: dict) -> None:
     """Write this invocation's wall times to ``path``; the invocations before it stay, under
     ``earlier`` (a resumed or partial ``ccm paper`` must not erase a full run's timing)."""
     earlier: list = []
-    try:
-        old = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        old = None
-    if isinstance(old, dict):
+    old = read_json_object(path)
+    if old is not None:
         earlier = [*old.pop("earlier", []), old]
     write_json_atomic(path, {**entry, "earlier": earlier})
 

@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from ccm.core.errors import ConfigError
-from ccm.core.records import write_atomic
+from ccm.core.records import read_json_object, write_atomic
 from ccm.experiment.config_check import check_output_dir
 from ccm.reporting.claim_stats import t95
 from ccm.reporting.claims import Verdict, evaluate, load_claims
@@ -114,12 +114,9 @@ def with_run_info(run: Path, summary: dict[str, Any]) -> dict[str, Any]:
     ``run_info.json``) added to its conditions, and the run's scalar wall-clock facts (e.g.
     H3's ``joint_multi_train_s``) under ``run_info``, where a claim reads them with
     ``condition: run_info``; unchanged without a readable run_info.json."""
-    try:
-        info = json.loads((run / "run_info.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):  # bad JSON, or bytes that are not UTF-8
-        return summary
+    info = read_json_object(run / "run_info.json")
     conditions = summary.get("conditions")
-    if not isinstance(info, dict) or not isinstance(conditions, dict):
+    if info is None or not isinstance(conditions, dict):
         return summary
     for name in RUN_INFO_METRICS:
         per_condition = info.get(name)
