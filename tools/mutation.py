@@ -27,8 +27,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "outputs" / "mutation"
 
-#: target -> (glob of the files mutated, the test files whose tests may kill its mutants)
-TARGETS: dict[str, tuple[str, list[str]]] = {
+#: target -> (glob(s) of the files mutated, the test files whose tests may kill its mutants);
+#: learn and control are split by subpackage so that each part runs in minutes, not hours
+TARGETS: dict[str, tuple[str | list[str], list[str]]] = {
     "reporting-claims": (
         "ccm/reporting/claim*.py",
         ["tests/test_claims.py", "tests/test_report.py", "tests/test_claim_pins.py"],
@@ -60,36 +61,71 @@ TARGETS: dict[str, tuple[str, list[str]]] = {
             "tests/test_gp_mpc_experiments.py",
         ],
     ),  # fmt: skip
-    "learn": (
-        "ccm/learn/*",
+    "learn-mixtures": (
+        "ccm/learn/mixtures/*",
         [
             "tests/test_igmm.py",
             "tests/test_forward_model.py",
-            "tests/test_modes.py",
-            "tests/test_contacts.py",
-            "tests/test_collisions.py",
-            "tests/test_gp_force.py",
-            "tests/test_svm_gp.py",
-            "tests/test_region_c.py",
+            "tests/test_h1_one_step.py",
         ],
     ),  # fmt: skip
-    "control": (
-        "ccm/control/*",
+    "learn-gp": (
+        "ccm/learn/gp/*",
+        ["tests/test_gp_force.py", "tests/test_svm_gp.py", "tests/test_gp_mpc.py"],
+    ),
+    "learn-contact": (
+        "ccm/learn/contact/*",
+        [
+            "tests/test_collisions.py",
+            "tests/test_contacts.py",
+            "tests/test_modes.py",
+            "tests/test_region_c.py",
+            "tests/test_contact_measurement.py",
+            "tests/test_anticipation.py",
+            "tests/test_contact_regions.py",
+        ],
+    ),  # fmt: skip
+    "control-adaptive": (
+        "ccm/control/adaptive/*",
         [
             "tests/test_avic.py",
-            "tests/test_impedance.py",
             "tests/test_modal.py",
             "tests/test_anticipation.py",
             "tests/test_retiming.py",
             "tests/test_contact_regions.py",
-            "tests/test_baselines.py",
-            "tests/test_admittance.py",
+            "tests/test_contact_measurement.py",
+            "tests/test_region_c.py",
+        ],
+    ),  # fmt: skip
+    "control-mpc": (
+        "ccm/control/mpc/*",
+        [
             "tests/test_mpc_terms.py",
             "tests/test_gp_mpc.py",
-            "tests/test_mrac_kernels.py",
+            "tests/test_admittance.py",
+            "tests/test_disturbance_estimate.py",
+            "tests/test_mpc_codegen.py",
+            "tests/test_mpc_constraints_on_off.py",
+            "tests/test_mpc_terms_on_off.py",
+        ],
+    ),  # fmt: skip
+    "control-baselines": (
+        "ccm/control/baselines/*",
+        ["tests/test_baselines.py", "tests/test_mrac_kernels.py"],
+    ),
+    "control-core": (
+        ["ccm/control/base.py", "ccm/control/impedance.py", "ccm/control/loop.py"],
+        [
+            "tests/test_impedance.py",
+            "tests/test_baselines.py",
+            "tests/test_contracts.py",
+            "tests/test_loop_reference.py",
+            "tests/test_avic.py",
         ],
     ),  # fmt: skip
 }
+#: a package name on the command line stands for its parts
+GROUPS = {pkg: [t for t in TARGETS if t.startswith(pkg + "-")] for pkg in ("learn", "control")}
 _LINE = re.compile(r"^\s+(?P<name>\S+__mutmut_\d+): (?P<status>.+)$")
 
 
@@ -107,13 +143,14 @@ def _copy_tree(dest: Path) -> None:
             shutil.copy2(src, dest / raw.decode())
 
 
-def _configure(dest: Path, glob: str, tests: list[str]) -> None:
+def _configure(dest: Path, glob: str | list[str], tests: list[str]) -> None:
     """Append mutmut's settings to the copy's pyproject.toml."""
     also = ["configs/", "hydra_plugins/", "experiments/", "README.md", "Makefile", "docs/"]
     text = (dest / "pyproject.toml").read_text()
+    globs = [glob] if isinstance(glob, str) else glob
     text += (
         "\n[tool.mutmut]\n"
-        f'source_paths = ["ccm"]\nonly_mutate = ["{glob}"]\n'
+        f'source_paths = ["ccm"]\nonly_mutate = {json.dumps(globs)}\n'
         f"also_copy = {json.dumps(also)}\n"
         f"pytest_add_cli_args_test_selection = {json.dumps(tests)}\n"
         'pytest_add_cli_args = ["-q", "-p", "no:cacheprovider", "-m", "not slow"]\n'
@@ -156,7 +193,8 @@ def table(results: dict[str, dict]) -> str:
         c = r["counts"]
         other = r["mutants"] - c.get("killed", 0) - c.get("survived", 0) - c.get("no tests", 0)
         frac = "–" if r["killed_frac"] is None else f"{100 * r['killed_frac']:.1f}"
-        cells = [name, f"`{r['files']}`", r["mutants"], c.get("killed", 0),
+        files = r["files"] if isinstance(r["files"], str) else ", ".join(r["files"])
+        cells = [name, f"`{files}`", r["mutants"], c.get("killed", 0),
                  c.get("survived", 0), c.get("no tests", 0), other, frac]  # fmt: skip
         rows.append("| " + " | ".join(str(x) for x in cells) + " |")
     return "\n".join(rows)
@@ -164,17 +202,23 @@ def table(results: dict[str, dict]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("targets", nargs="*", help=f"default: all of {', '.join(TARGETS)}")
+    p.add_argument(
+        "targets",
+        nargs="*",
+        help=f"default: all of {', '.join(TARGETS)}; learn and control name their parts",
+    )
     p.add_argument("--jobs", type=int, default=2, help="parallel mutants (default 2)")
     args = p.parse_args(argv)
-    unknown = [t for t in args.targets if t not in TARGETS]
+    unknown = [t for t in args.targets if t not in TARGETS and t not in GROUPS]
     if unknown:
-        print(f"mutation: unknown target {unknown[0]!r}; allowed: {', '.join(TARGETS)}")
+        allowed = ", ".join([*TARGETS, *GROUPS])
+        print(f"mutation: unknown target {unknown[0]!r}; allowed: {allowed}")
         return 2
+    names = [n for t in args.targets or list(TARGETS) for n in GROUPS.get(t, [t])]
     OUT.mkdir(parents=True, exist_ok=True)
     path = OUT / "mutation.json"
     results = json.loads(path.read_text()) if path.exists() else {}
-    for name in args.targets or list(TARGETS):
+    for name in names:
         results[name] = run_target(name, args.jobs)
         path.write_text(json.dumps(results, indent=1) + "\n")
         print(table({name: results[name]}).splitlines()[-1], flush=True)
