@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -65,7 +66,9 @@ TARGETS: dict[str, tuple[str | list[str], list[str]]] = {
         "ccm/learn/mixtures/*",
         [
             "tests/test_igmm.py",
+            "tests/test_igmm_io.py",
             "tests/test_forward_model.py",
+            "tests/test_forward_model_state.py",
             "tests/test_h1_one_step.py",
         ],
     ),  # fmt: skip
@@ -126,15 +129,22 @@ TARGETS: dict[str, tuple[str | list[str], list[str]]] = {
 }
 #: a package name on the command line stands for its parts
 GROUPS = {pkg: [t for t in TARGETS if t.startswith(pkg + "-")] for pkg in ("learn", "control")}
+#: mutmut forks one child per mutant from a process that has run the tests once: a BLAS or
+#: OpenMP thread pool started there deadlocks in the child (scikit-learn's GaussianMixture
+#: hung every mutant of the frozen forward model's fit, reported as timeouts), so no pools
+_ENV = {**os.environ, **dict.fromkeys(
+    ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"), "1"
+)}  # fmt: skip
 _LINE = re.compile(r"^\s+(?P<name>\S+__mutmut_\d+): (?P<status>.+)$")
 
 
-def _copy_tree(dest: Path) -> None:
-    """The tracked files of the repository (as a clean checkout has them) into ``dest``."""
+def _copy_tree(dest: Path, fresh: bool) -> None:
+    """The tracked files of the repository (as the index has them) into ``dest``; ``fresh``
+    removes what an earlier run left there (its mutants and their results) first."""
     files = subprocess.run(
         ["git", "ls-files", "-z"], cwd=ROOT, check=True, capture_output=True
     ).stdout.split(b"\0")
-    if dest.exists():
+    if fresh and dest.exists():
         shutil.rmtree(dest)
     for raw in filter(None, files):
         src = ROOT / raw.decode()
@@ -158,17 +168,19 @@ def _configure(dest: Path, glob: str | list[str], tests: list[str]) -> None:
     (dest / "pyproject.toml").write_text(text)
 
 
-def run_target(name: str, jobs: int) -> dict:
-    """Mutate one target and count its mutants by status."""
+def run_target(name: str, jobs: int, again: list[str] | None = None) -> dict:
+    """Mutate one target and count its mutants by status. ``again``: rerun only these mutants
+    of the previous run (kept in place; mutmut collects the stats of new tests first), the
+    verdicts of the others stand."""
     glob, tests = TARGETS[name]
     dest = OUT / name
-    _copy_tree(dest)
+    _copy_tree(dest, fresh=again is None)
     _configure(dest, glob, tests)
     mutmut = [sys.executable, "-m", "mutmut"]
     t0 = time.perf_counter()
-    with open(OUT / f"{name}.log", "w") as log:
-        subprocess.run([*mutmut, "run", "--max-children", str(jobs)], cwd=dest, stdout=log,
-                       stderr=subprocess.STDOUT, check=False)  # fmt: skip
+    with open(OUT / f"{name}.log", "a" if again else "w") as log:
+        subprocess.run([*mutmut, "run", "--max-children", str(jobs), *(again or [])], cwd=dest,
+                       stdout=log, stderr=subprocess.STDOUT, check=False, env=_ENV)  # fmt: skip
     res = subprocess.run(
         [*mutmut, "results", "--all", "true"], cwd=dest, capture_output=True, text=True, check=False
     )
@@ -208,6 +220,11 @@ def main(argv: list[str] | None = None) -> int:
         help=f"default: all of {', '.join(TARGETS)}; learn and control name their parts",
     )
     p.add_argument("--jobs", type=int, default=2, help="parallel mutants (default 2)")
+    p.add_argument(
+        "--again",
+        action="store_true",
+        help="rerun only the mutants that the target's last run did not kill",
+    )
     args = p.parse_args(argv)
     unknown = [t for t in args.targets if t not in TARGETS and t not in GROUPS]
     if unknown:
@@ -219,9 +236,16 @@ def main(argv: list[str] | None = None) -> int:
     path = OUT / "mutation.json"
     results = json.loads(path.read_text()) if path.exists() else {}
     for name in names:
-        results[name] = run_target(name, args.jobs)
+        again = results.get(name, {}).get("not_killed") if args.again else None
+        if args.again and not (OUT / name / "mutants").is_dir():
+            print(f"mutation: --again needs an earlier run of {name!r}; run it without --again")
+            return 2
+        result = run_target(name, args.jobs, again)
+        # read again before writing: another target may have finished meanwhile
+        results = json.loads(path.read_text()) if path.exists() else {}
+        results[name] = result
         path.write_text(json.dumps(results, indent=1) + "\n")
-        print(table({name: results[name]}).splitlines()[-1], flush=True)
+        print(table({name: result}).splitlines()[-1], flush=True)
     print(table(results))
     return 0
 
