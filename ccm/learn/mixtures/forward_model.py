@@ -240,6 +240,7 @@ class FrozenGMMForwardModel:
         fit_steps: number of points in the training window ("the initial phase"), or None:
             the points of the first trial (seed A §4.1: "the sensor measurements collected
             during the initial phase"; a horizon of H steps gives a trial H fewer points).
+            At least 2.
         n_components: mixture size for ``sklearn.mixture.GaussianMixture``.
         feature_scale: as for :class:`IncrementalForwardModel`.
         random_state: seed of the k-means initialisation (reproducible fits).
@@ -260,6 +261,8 @@ class FrozenGMMForwardModel:
         self.fit_steps = (
             None if fit_steps is None else check_int_positive(f"{key}.fit_steps", fit_steps)
         )
+        if self.fit_steps == 1:  # scikit-learn fits a mixture to two points or more
+            raise ConfigError(f"{key}.fit_steps", "must be >= 2 (a mixture needs two points)")
         self.n_components = check_int_positive(f"{key}.n_components", n_components)
         self.scale = _check_scale(feature_scale, f"{key}.feature_scale")
         self.horizon_s = check_positive(f"{key}.horizon_s", horizon_s)
@@ -316,8 +319,10 @@ class FrozenGMMForwardModel:
         return np.asarray(mean, dtype=float) * self.scale[N_STATE:]
 
     def end_trial(self) -> None:
-        """With ``fit_steps=None``, fit on the first trial's points; else nothing to do."""
-        if self.fit_steps is None and self._params is None and self._n > 0:
+        """With ``fit_steps=None``, fit on the first trial's points; else nothing to do. A
+        trial that gave fewer than two points (too short for one pair H apart, or for a
+        mixture) leaves the window open into the next."""
+        if self.fit_steps is None and self._params is None and self._n >= 2:
             self._fit()
 
     def state_dict(self) -> dict[str, Any]:
