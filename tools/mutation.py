@@ -76,7 +76,12 @@ TARGETS: dict[str, tuple[str | list[str], list[str]]] = {
     ),  # fmt: skip
     "learn-gp": (
         "ccm/learn/gp/*",
-        ["tests/test_gp_force.py", "tests/test_svm_gp.py", "tests/test_gp_mpc.py"],
+        [
+            "tests/test_gp_force.py",
+            "tests/test_svm_gp.py",
+            "tests/test_gp_contracts.py",
+            "tests/test_gp_mpc.py",
+        ],
     ),
     "learn-contact": (
         "ccm/learn/contact/*",
