@@ -212,3 +212,60 @@ def test_gp_force_models_name_each_output() -> None:
     assert _line(models.models[0].negative_log_likelihood, [0.1], 1.0, 0.1) == (
         "fm.outputs[0].mean: hinge mean needs hinge=(c1, c2, c3)"
     )
+
+
+def _clean_hinge() -> tuple[np.ndarray, np.ndarray]:
+    """f = 2 − 30 · max(0, x − 0.4) on 41 points of [0, 1]: c3 = 0.4 lies on the start's grid
+    of 21 values, so the least-squares hinge start recovers (c1, c2, c3) = (2, −30, 0.4)."""
+    x = np.linspace(0.0, 1.0, 41)
+    return x[:, None], 2.0 - 30.0 * np.maximum(0.0, x - 0.4)
+
+
+@pytest.mark.parametrize("variance", ["separate", "tied"])
+def test_the_hinge_start_is_the_least_squares_hinge(variance: str) -> None:
+    """The deterministic start (seed B's hinge mean, Eq. 3): the hinge by least squares over a
+    grid of c3; σ_f² the residual variance (floored at 1e-12) and σ_n² a tenth of it, or the
+    same one variance when tied (Eq. 1–2 as printed)."""
+    from ccm.learn.gp.gp_force import GPForceModel
+
+    X, f = _clean_hinge()
+    wide = {"signal_var_bounds": (1e-14, 1e4), "noise_var_bounds": (1e-14, 1e2)}  # no clip
+    m = GPForceModel(mean="hinge", n_restarts=0, variance=variance, **wide).fit(X, f)
+    start = m.initial_params_
+    np.testing.assert_allclose(start["hinge"], (2.0, -30.0, 0.4), atol=1e-9)
+    np.testing.assert_allclose(start["length_scales"], [X[:, 0].std()], rtol=1e-12)
+    assert start["signal_var"] == pytest.approx(1e-12)
+    noise = 1e-12 if variance == "tied" else 1e-13
+    assert start["noise_var"] == pytest.approx(noise)
+
+
+def test_gp_force_sample_and_hinge_input_bounds() -> None:
+    from ccm.learn.gp.gp_force import GPForceModel
+
+    X, f = _clean_hinge()
+    GPForceModel(n_restarts=0).fit(X[:2], f[:2])  # two samples are enough
+    assert _line(GPForceModel(key="g").fit, X[:1], f[:1]) == "g.X: needs at least 2 samples, got 1"
+    assert _line(GPForceModel(key="g").fit, X, f[:-1]) == (
+        "g.f: must have length 41 (rows of X), got 40"
+    )
+    assert _line(GPForceModel(key="g", mean="hinge", hinge_input=1).fit, X, f) == (
+        "g.hinge_input: must be < input dimension 1"
+    )
+
+
+def test_a_singular_kernel_has_minus_infinite_likelihood() -> None:
+    """FastGPR returns log p = −inf (zero gradient) where K is not positive definite, so the
+    optimiser moves away; +inf would attract it."""
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+
+    from ccm.learn.gp._gpr import FastGPR
+
+    x = np.repeat(np.linspace(0.0, 1.0, 10), 3)[:, None]  # every point three times
+    kernel = ConstantKernel(1.0) * RBF(0.3) + WhiteKernel(1e-3)
+    gp = FastGPR(kernel=kernel, optimizer=None, alpha=0.0).fit(x, np.sin(3 * x[:, 0]))
+    theta = gp.kernel_.theta.copy()
+    theta[-1] = np.log(1e-300)  # no noise: K has repeated rows
+    theta[0] = np.log(1e3)
+    value, grad = gp.log_marginal_likelihood(theta, eval_gradient=True)
+    assert value == -np.inf and np.all(grad == 0.0)
+    assert gp.log_marginal_likelihood(theta) == -np.inf
