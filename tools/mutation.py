@@ -88,6 +88,7 @@ TARGETS: dict[str, tuple[str | list[str], list[str]]] = {
         [
             "tests/test_collisions.py",
             "tests/test_contacts.py",
+            "tests/test_contact_contracts.py",
             "tests/test_modes.py",
             "tests/test_region_c.py",
             "tests/test_contact_measurement.py",
