@@ -219,3 +219,80 @@ def test_observe_refuses_half_an_impact_and_an_unknown_expectation() -> None:
         "c.v_used: only a collision has an approach velocity"
     )
     assert _line(cm.observe, [0.1, 0.2], expected=5) == "c.expected: no contact 5"
+
+
+def _approach(**kw: Any) -> Any:
+    from ccm.learn.contact.approach import ApproachVelocityModel
+
+    return ApproachVelocityModel(**kw)
+
+
+def test_a_shallow_line_sets_the_speed_and_the_force_limit() -> None:
+    """Rule 2 and 4 with a line of slope 0.5 N/(m/s) (shallower than 1, so no slope threshold
+    other than 0 passes unnoticed): F = 0.5 v + 7.95 through (0.05, 7.975) and (0.1, 8.0)."""
+    m = _approach(f_desired=7.99)
+    m.update(0.05, 7.975)
+    v = m.update(0.10, 8.0)
+    assert v == pytest.approx((7.99 - 7.95) / 0.5)  # the line's speed for F_d, 0.08 m/s
+    assert m.predict_force(0.2) == pytest.approx(0.5 * 0.2 + 7.95)
+    assert m.velocity_limit() == pytest.approx((10.0 - 7.95) / 0.5)
+    plain = _approach(f_desired=7.99, use_model=False)
+    plain.update(0.05, 7.975)
+    assert plain.update(0.10, 8.0) == pytest.approx(0.10 + 0.002 * (7.99 - 8.0))  # Eq. 9
+
+
+def test_a_line_at_the_force_limit_returns_v_min_and_a_flat_one_has_no_limit() -> None:
+    m = _approach()
+    assert m.predict_force(0.1) is None and m.velocity_limit() == np.inf
+    m.update(0.05, 10.025)
+    m.update(0.10, 10.05)  # F = 0.5 v + 10: F_max at v = 0
+    assert m.velocity_limit() == pytest.approx(0.0, abs=1e-12)
+    assert m.next_velocity() == m.v_min and not m.force_limit_feasible
+    flat = _approach()
+    flat.update(0.05, 0.0)  # no force at all: nothing to limit
+    assert flat.velocity_limit() == np.inf and flat.force_limit_feasible
+
+
+def test_an_estimated_beta_is_the_inverse_through_origin_slope() -> None:
+    """beta=None (rule 1): β = 1 / k̂, k̂ = v·F / v·v; a zero slope gives β = 0 (no change)."""
+    m = _approach(beta=None, use_model=False)
+    # k̂ = 0.5: β = 2, target 0.05 + 2 · (8 − 0.025) is far: the step limit gives 0.05 + 0.05
+    assert m.update(0.05, 0.025) == pytest.approx(0.10)
+    still = _approach(beta=None, use_model=False)
+    assert still.update(0.05, 0.0) == pytest.approx(0.05)
+    with pytest.raises(ConfigError) as info:
+        type(m).from_state_dict({"params": {"beta": -1.0}, "velocities": [], "forces": []}, "k")
+    assert info.value.key == "k.beta"
+
+
+def test_new_contacts_are_numbered_and_the_expected_one_is_gated_with_p_plus_r() -> None:
+    cm = ContactMap(
+        2, key="c", process_noise_std=0.0, measurement_noise_std=0.01, new_contact_std=0.01
+    )
+    first = cm.observe([0.0, 0.0], "impactless")
+    assert (first.index, first.is_new, first.updated, first.distance) == (0, True, True, None)
+    cm.observe([1.0, 0.0], "impactless")
+    assert [c.name for c in cm.contacts] == ["new1", "new2"]
+    assert _line(cm.observe, [0.0, 0.0], "impactless", expected=2) == "c.expected: no contact 2"
+    cm.end_trial()  # a contact is corrected once per trial: the next trial
+    # the expected contact 0 is tried first, with its innovation covariance P + R
+    # (σ² = 1e-4 + 1e-4): 0.02 m is 1.41 σ, inside the gate; distance reported that way
+    ev = cm.observe([0.02, 0.0], "impactless", expected=0, expected_gate=3.0)
+    assert ev.index == 0 and ev.distance == pytest.approx(0.02 / np.sqrt(2e-4))
+    assert cm.contacts[0].belief.n_updates == 1
+    cm.end_trial()
+    cm.observe([0.0, 0.0], "impactless")
+    assert cm.contacts[0].belief.n_updates == 2
+
+
+def test_a_batch_is_checked_before_it_is_classified() -> None:
+    mc = ModeClassifier(0.1, 0.6, 5, key="mc")
+    assert _line(mc.classify, [["a"]] * 5) == "mc.batch: must be a 2-D array of numbers"
+    assert _line(mc.classify, np.zeros(5)) == "mc.batch: must be a 2-D array (N, d), got shape (5,)"
+    assert _line(mc.classify, np.zeros((4, 1))) == "mc.batch: needs >= 5 rows (min_batch), got 4"
+    assert _line(mc.classify, np.full((5, 1), np.nan)) == (
+        "mc.batch: must be finite (features out of contact are NaN)"
+    )
+    # Birch's threshold is the classifier's: 0.3 apart is two subclusters at 0.1
+    mc.classify(np.array([[0.3]] * 3 + [[0.6]] * 3))
+    assert mc.mode_centres(0).shape == (2, 1)
