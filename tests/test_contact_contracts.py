@@ -287,6 +287,7 @@ def test_new_contacts_are_numbered_and_the_expected_one_is_gated_with_p_plus_r()
 
 def test_a_batch_is_checked_before_it_is_classified() -> None:
     mc = ModeClassifier(0.1, 0.6, 5, key="mc")
+    np.testing.assert_array_equal(mc.assign(np.zeros((5, 1))), [-1] * 5)  # no mode yet
     assert _line(mc.classify, [["a"]] * 5) == "mc.batch: must be a 2-D array of numbers"
     assert _line(mc.classify, np.zeros(5)) == "mc.batch: must be a 2-D array (N, d), got shape (5,)"
     assert _line(mc.classify, np.zeros((4, 1))) == "mc.batch: needs >= 5 rows (min_batch), got 4"
