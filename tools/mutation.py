@@ -128,6 +128,7 @@ TARGETS: dict[str, tuple[str | list[str], list[str]]] = {
         ["ccm/control/base.py", "ccm/control/impedance.py", "ccm/control/loop.py"],
         [
             "tests/test_impedance.py",
+            "tests/test_controller_contracts.py",
             "tests/test_baselines.py",
             "tests/test_contracts.py",
             # the loop's pinned metrics, the 2-D and cheap 3-D tasks only (the 3-D H4 tasks
