@@ -216,14 +216,19 @@ def run_target(
     population: list[str] = []
     with open(OUT / f"{name}.log", "a" if again or sample else "w") as log:
         scope: list[str] = []
+        scope_todo: list[str] = []
         if sample:  # generate the mutants and the stats; no mutant has this name, so none runs
             subprocess.run([*run, "ccm-list-only"], cwd=dest, stdout=log,
                            stderr=subprocess.STDOUT, check=False, env=_ENV)  # fmt: skip
-            population = sorted(_statuses(dest))
+            before = _statuses(dest)
+            population = sorted(before)
             scope = sorted(random.Random(0).sample(population, min(sample, len(population))))
-        names = scope if again is None else again  # --again on a sample: its survivors only
-        subprocess.run([*run, *names], cwd=dest, stdout=log, stderr=subprocess.STDOUT,
-                       check=False, env=_ENV)  # fmt: skip
+            # the sample's mutants without a verdict (an earlier, stopped run keeps its own)
+            scope_todo = [n for n in scope if before[n] == "not checked"]
+        names = (scope_todo if sample else []) if again is None else again
+        if names or not sample:  # no names: every mutant without a verdict (a sample: none)
+            subprocess.run([*run, *names], cwd=dest, stdout=log, stderr=subprocess.STDOUT,
+                           check=False, env=_ENV)  # fmt: skip
     status = _statuses(dest)
     if sample:
         status = {k: status[k] for k in scope}
