@@ -284,6 +284,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--jobs", type=int, default=2, help="parallel mutants (default 2)")
     p.add_argument(
+        "--sample",
+        type=int,
+        default=None,
+        metavar="N",
+        help="test a seeded random sample of N mutants per target (an estimate)",
+    )
+    p.add_argument(
         "--again",
         action="store_true",
         help="rerun only the mutants that the target's last run did not kill",
