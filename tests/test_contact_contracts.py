@@ -9,6 +9,7 @@ line that names the field (checked whole), a round trip keeps every setting.
 from __future__ import annotations
 
 import json
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -20,12 +21,9 @@ from ccm.learn.contact.belief import ContactBelief
 from ccm.learn.contact.contacts import ContactMap
 from ccm.learn.contact.mode_features import TransitionTrigger, mode_features
 from ccm.learn.contact.modes import ModeClassifier
+from tests.refusals import refusal
 
-
-def _line(fn: Any, *args: Any, **kw: Any) -> str:
-    with pytest.raises(ConfigError) as info:
-        fn(*args, **kw)
-    return str(info.value)
+_line = partial(refusal, ConfigError)
 
 
 def test_region_c_is_the_mahalanobis_ball_floored_at_the_minimum_radius() -> None:

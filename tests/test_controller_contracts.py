@@ -9,6 +9,7 @@ with the critical rule, for the end-effector mass or for the arm's Λ(q) each st
 from __future__ import annotations
 
 import dataclasses
+from functools import partial
 
 import numpy as np
 import pytest
@@ -16,13 +17,10 @@ import pytest
 from ccm.control.base import check_state_keys, state_error
 from ccm.control.impedance import FixedImpedance
 from ccm.core.errors import ConfigError
+from tests.refusals import refusal
 from tests.test_impedance import make, obs, target
 
-
-def _line(fn, *args) -> str:  # noqa: ANN001
-    with pytest.raises(ConfigError) as info:
-        fn(*args)
-    return str(info.value)
+_line = partial(refusal, ConfigError)
 
 
 @pytest.mark.parametrize(

@@ -10,6 +10,7 @@ warnings are counted over every mode; a rollout's first step uses the first exog
 from __future__ import annotations
 
 import time
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -18,14 +19,11 @@ import pytest
 from ccm.core.errors import ConfigError
 from ccm.learn.gp.gp_force import GPForceModels
 from ccm.learn.gp.svm_gp import ModalGPDynamics
+from tests.refusals import refusal
 from tests.test_gp_force import _contact_data
 from tests.test_svm_gp import _dataset, _force_data
 
-
-def _line(fn: Any, *args: Any, **kw: Any) -> str:
-    with pytest.raises(ConfigError) as info:
-        fn(*args, **kw)
-    return str(info.value)
+_line = partial(refusal, ConfigError)
 
 
 @pytest.mark.parametrize(

@@ -8,6 +8,7 @@ predictions even when one row lies far from every component.
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -22,15 +23,13 @@ from ccm.learn.mixtures.forward_model import (
 )
 from ccm.learn.mixtures.gmr import GMRConditional, gmr_predict
 from ccm.learn.mixtures.igmm import IGMM
+from tests.refusals import refusal
 
 W, MU = [0.5, 0.5], [[0.0, 0.0, 0.0], [2.0, 1.0, -1.0]]
 COV = [np.eye(3).tolist(), (0.5 * np.eye(3)).tolist()]
 
 
-def _message(fn: Any, *args: Any, **kw: Any) -> str:
-    with pytest.raises(ValueError) as info:
-        fn(*args, **kw)
-    return str(info.value)
+_message = partial(refusal, ValueError)
 
 
 @pytest.mark.parametrize(
