@@ -306,6 +306,10 @@ def main(argv: list[str] | None = None) -> int:
     path = OUT / "mutation.json"
     results = json.loads(path.read_text()) if path.exists() else {}
     for name in names:
+        if args.again and results.get(name, {}).get("tests", TARGETS[name][1]) != TARGETS[name][1]:
+            # mutmut resets every verdict when the test selection changes
+            print(f"mutation: {name}'s tests changed since its last run; run it without --again")
+            return 2
         # --again on a run that never finished: resume it (mutmut keeps each verdict it has)
         again = results.get(name, {}).get("not_killed", []) if args.again else None
         if args.again and not (OUT / name / "mutants").is_dir():
