@@ -304,3 +304,26 @@ def test_incremental_model_before_learning_and_on_bad_points() -> None:
     with pytest.raises(ConfigError) as info:
         IncrementalForwardModel(igmm={"sigma_init": -1.0})
     assert info.value.key == "controller.forward_model.igmm.sigma_init"
+
+
+def test_igmm_setting_bounds_are_exact() -> None:
+    """(0, 1) for the novelty quantile, two components for a merge, σ² ≥ the floor: each
+    bound itself is allowed or refused as documented, with its own line."""
+    assert _message(IGMM, 2, novelty_chi2_quantile=1.5) == (
+        "igmm.novelty_chi2_quantile: must be in [0.0, 1.0], got 1.5"
+    )
+    assert _message(IGMM, 2, novelty_chi2_quantile=1.0) == (
+        "igmm.novelty_chi2_quantile: must be in (0, 1) exclusive, got 1.0"
+    )
+    assert _message(IGMM, 2, max_components=1) == (
+        "igmm.max_components: must be >= 2 with overflow='merge' (a merge needs two)"
+    )
+    IGMM(2, max_components=2)  # two are enough to merge
+    IGMM(2, sigma_init=0.5, cov_floor=0.25)  # σ² equal to the floor is allowed
+    assert _message(IGMM, 2, sigma_init=1e-4, cov_floor=1e-6) == (
+        "igmm.sigma_init: sigma_init**2 must be >= cov_floor=1e-06, got min sigma_init 0.0001"
+    )
+    assert _message(FrozenGMMForwardModel, fit_steps=1) == (
+        "controller.forward_model.fit_steps: must be >= 2 (a mixture needs two points)"
+    )
+    assert FrozenGMMForwardModel().fit_errors.shape == (0,)  # no errors before the fit
