@@ -80,3 +80,29 @@ def test_with_the_arms_inertia_the_damping_follows_lambda_each_step() -> None:
 def test_stiffness_must_fit_the_task() -> None:
     c = FixedImpedance(stiffness=[1.0, 2.0, 3.0])
     assert _line(c.reset, 2, 0.001) == "controller.stiffness: needs 1 or 2 values, got 3"
+
+
+def test_scalar_gains_take_the_same_rules_as_arrays() -> None:
+    """The per-step float path of the damping rules (planar tasks): critical 2 ζ √(K_p m) for
+    m = 4 kg, and the paper's √K_p / 4 (stated after Eq. 4c, seed A)."""
+    from ccm.control.loop import HybridLoop
+
+    crit = HybridLoop(damping_rule="critical", damping_ratio=1.0, mass_kg=4.0)
+    assert crit.damping_for(100.0) == pytest.approx(40.0)
+    assert crit.damping_for(np.array([100.0])) == pytest.approx([40.0])
+    paper = HybridLoop(damping_rule="paper", mass_kg=4.0)
+    assert paper.damping_for(400.0) == pytest.approx(5.0)
+    assert _line(HybridLoop, damping_ratio=-1.0).startswith("controller.loop.damping_ratio: ")
+
+
+def test_the_force_integral_winds_up_to_its_limit_over_the_gain() -> None:
+    """u_fc = d (F_d + k_fp e + k_fi ∫e) − d k_fd (d·v) with the integral clipped to
+    ±limit / k_fi: k_fi = 0.5 1/s and a limit of 1 N keep ∫e within ±2 N s, so a 10 N error
+    held for 1 s gives k_fi ∫e = 1 N, not 5 N."""
+    c = make(force_kp=0.0, force_ki=0.5, force_integral_limit_N=1.0, force_damping=0.0)
+    assert c.signals()["force_control"] == 0.0
+    press = target(fdir=(0.0, -1.0), fmag=10.0)
+    for _ in range(1000):
+        u = c.step(obs(), press)
+    np.testing.assert_allclose(u.force, [0.0, -11.0])
+    assert c.signals()["force_control"] == 1.0 and c.signals()["force_error_N"] == 10.0
