@@ -285,3 +285,54 @@ def test_bad_overrides_fail_when_built(composer: Composer, overrides: list, key:
     with pytest.raises(ConfigError) as err:
         build_components(composer(overrides))
     assert err.value.key == key
+
+
+def test_mrac_numpy_and_compiled_paths_agree_off_force_segments() -> None:
+    """The numpy path (used on force segments) is the same law as the compiled one: the
+    reference model's a_m = ω²(r − x_m) − 2ζω v_m, the errors and the adapted gains."""
+    rng = np.random.default_rng(4)
+    a, b = MRAC(), MRAC()
+    b.compiled = False  # the class switch the kernel tests use
+    a.reset(2, DT)
+    b.reset(2, DT)
+    for _ in range(50):
+        o = obs(pos=rng.normal(0, 0.01, 2), vel=rng.normal(0, 0.1, 2))
+        t = target(pos=rng.normal(0, 0.02, 2), vel=rng.normal(0, 0.1, 2))
+        np.testing.assert_allclose(a.step(o, t).force, b.step(o, t).force, rtol=1e-9, atol=1e-12)
+    assert a.signals() == pytest.approx(b.signals(), rel=1e-9)
+
+
+def test_aic_perception_descends_the_free_energy_with_each_precision() -> None:
+    """One Euler step of the beliefs (Pezzato et al. 2020, as the class docstring states) with
+    distinct σ's, so that every precision 1/σ shows: from μ = y₀, μ' = ẏ₀, μ'' = 0."""
+    c = AIC(k_mu=2.0, k_a=1e-9, sigma_y=0.5, sigma_yp=2.0, sigma_mu=4.0, sigma_mup=8.0,
+            attractor_rate=3.0)  # fmt: skip
+    c.reset(1, DT)
+    c.step(obs(pos=(0.0, 0.0)), target())  # starts the beliefs at the observation
+    mu, mu_p, mu_pp = c.mu.copy(), c.mu_p.copy(), c.mu_pp.copy()
+    y, yp, r = np.array([0.02, -0.01]), np.array([0.1, 0.0]), np.array([0.05, 0.05])
+    c.step(obs(pos=y, vel=yp), target(pos=r))
+    lam, kmu = 3.0, 2.0
+    e_y, e_yp = y - mu, yp - mu_p
+    e_mu, e_mup = mu_p - lam * (r - mu), mu_pp + lam * mu_p
+    g_mu = -e_y / 0.5 + lam * e_mu / 4.0
+    g_mup = -e_yp / 2.0 + e_mu / 4.0 + lam * e_mup / 8.0
+    np.testing.assert_allclose(c.mu, mu + DT * (mu_p - kmu * g_mu), rtol=1e-12)
+    np.testing.assert_allclose(c.mu_p, mu_p + DT * (mu_pp - kmu * g_mup), rtol=1e-12)
+    np.testing.assert_allclose(c.mu_pp, mu_pp - DT * kmu * e_mup / 8.0, rtol=1e-12, atol=1e-15)
+    s = c.signals()
+    assert s["belief_error_m"] == pytest.approx(np.linalg.norm(e_y))
+    assert s["belief_lag_m"] == pytest.approx(np.linalg.norm(r - mu))
+    assert s["action_N"] == 0.0  # the action applied this step is the one before it
+
+
+def test_bac_learns_only_across_the_force_direction() -> None:
+    """On a force segment along d = −y the position error along d is the force loop's, not
+    BAC's: the learned F(k) keeps no part along d (γ = 0, F₀ = 0: F = q κ e_p across d)."""
+    c = BAC(init_stiffness=300.0, init_force=0.0, kappa=10.0, q_force=2.0, gamma_force=0.0)
+    c.reset(2, DT)
+    for _ in range(3):
+        c.step(obs(pos=(-0.01, -0.02)), target(fdir=(0.0, -1.0), fmag=5.0))
+    c.end_trial()
+    np.testing.assert_allclose(c.force_profile[:, 1], 0.0, atol=1e-15)
+    np.testing.assert_allclose(c.force_profile[:, 0], 2.0 * 10.0 * 0.01, rtol=1e-12)
