@@ -291,7 +291,8 @@ def test_mrac_numpy_and_compiled_paths_agree_off_force_segments() -> None:
     """The numpy path (used on force segments) is the same law as the compiled one: the
     reference model's a_m = ω²(r − x_m) − 2ζω v_m, the errors and the adapted gains."""
     rng = np.random.default_rng(4)
-    a, b = MRAC(), MRAC()
+    loop = {"inertia_feedforward": True, "mass_kg": 2.0}  # so that a_m reaches the command
+    a, b = MRAC(loop=loop), MRAC(loop=loop)
     b.compiled = False  # the class switch the kernel tests use
     a.reset(2, DT)
     b.reset(2, DT)
