@@ -260,3 +260,24 @@ def test_the_controller_records_the_sigma_f_its_solve_saw(gp2: GPForceModels) ->
     np.testing.assert_allclose([sig["sigma_f_x_N2"], sig["sigma_f_y_N2"]], expected, rtol=1e-12)
     start = 3.0 * ctrl.models[0].predict(np.array([[-0.01, 0.0]]))[1][0]
     assert not np.allclose(expected, start)  # the plan's end, not the measured pose
+
+
+def test_the_inner_loop_renders_eq4_and_tracks_it_with_pd() -> None:
+    """Between MPC solves (seed B Eq. 4, backward Euler): (M + dt D) v⁺ = M v + dt (f − f^r),
+    x⁺ = x + dt v⁺, and the command m a_ref + k_p (x_ref − x) + k_d (v_ref − v); the 2-D
+    tool's angle is held by k_rot (θ₀ − θ) − d_rot ω. Every term is non-zero here."""
+    ctrl = GPMPC(mpc=False, mass_kg=2.0, inner_kp=300.0, inner_kd=40.0, rot_stiffness=5.0,
+                 rot_damping=0.5)  # fmt: skip
+    ctrl.reset(2, 0.001)
+    target = TargetSample(0.0, np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(1))
+    z = np.zeros(2)
+    ctrl.step(Observation(0.0, z, np.array([0.2]), z, np.zeros(1), z, z[:1]), target)
+    m, d, fr, v0, x0 = ctrl.mass, ctrl.damping, ctrl.f_ref, ctrl._v_ref, ctrl._x_ref
+    f, x, v = np.array([6.0, -2.0]), np.array([0.001, -0.002]), np.array([0.05, 0.01])
+    o = Observation(0.001, x, np.array([0.3]), v, np.array([0.4]), f, z[:1])
+    cmd = ctrl.step(o, target)
+    v_new = (m * v0 + 0.001 * (f - fr)) / (m + 0.001 * d)
+    x_new = x0 + 0.001 * v_new
+    expected = 2.0 * (v_new - v0) / 0.001 + 300.0 * (x_new - x) + 40.0 * (v_new - v)
+    np.testing.assert_allclose(cmd.force, expected, rtol=1e-12)
+    np.testing.assert_allclose(cmd.torque, [-5.0 * (0.3 - 0.2) - 0.5 * 0.4], rtol=1e-12)
