@@ -337,3 +337,24 @@ def test_bac_learns_only_across_the_force_direction() -> None:
     c.end_trial()
     np.testing.assert_allclose(c.force_profile[:, 1], 0.0, atol=1e-15)
     np.testing.assert_allclose(c.force_profile[:, 0], 2.0 * 10.0 * 0.01, rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "make", [MRAC, AIC, BAC, FixedImpedance], ids=["mrac", "aic", "bac", "impedance"]
+)
+def test_signals_keep_one_key_set_with_float_values(make: type[Controller]) -> None:
+    """``Controller.signals``: the set of keys is fixed for a controller (the log's columns),
+    from reset on, through motion and force segments; every value a float (NaN only for a
+    gain the controller does not have)."""
+    c = make()
+    c.reset(2, DT)
+    keys = set(c.signals())
+    units = ("_N", "_Npm", "_Nspm", "_m", "_mps", "_control")  # keys carry units
+    assert keys and all(k.endswith(units) for k in keys), keys
+    for t in (target(pos=(0.01, 0.0)), target(fdir=(0.0, -1.0), fmag=5.0)):
+        c.step(obs(pos=(0.0, 0.001), vel=(0.01, 0.0), force=(0.0, 2.0)), t)
+        s = c.signals()
+        assert set(s) == keys
+        assert all(isinstance(v, float) for v in s.values()), s
+    # a value the controller computes is a number, not a placeholder
+    assert sum(np.isfinite(v) for v in c.signals().values()) >= len(keys) - 1
