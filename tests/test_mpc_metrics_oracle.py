@@ -217,3 +217,11 @@ def test_rail_distance_subtracts_the_point_and_the_tool_extent() -> None:
     log["contact_force_x"][:] = 1.9  # never pushes with 2 N: no success, no time
     m = gp_mpc_metrics(log, 2, _RAIL_PARAMS)
     assert m["task_success"] == 0.0 and m["time_to_rail_s"] is None
+
+
+def test_far_from_human_is_measured_from_the_shoulder() -> None:
+    """The shoulder at x = −0.5 m: the tool at x = 0.2 is 0.7 m from it and at 1.0 is 1.5 m,
+    so every sample is far (≥ 0.5 m); measured from the origin only 40 % would be."""
+    m = gp_mpc_metrics(_log(), 2, {**PARAMS, "human_shoulder": [-0.5, 0.0, 0.0]})
+    assert m["far_from_human_frac"] == 1.0
+    assert m["mean_damping_far_Nspm"] == pytest.approx((0.4 * 500 + 0.6 * 100 + 150.0) / 2)
