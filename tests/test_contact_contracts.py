@@ -295,3 +295,43 @@ def test_a_batch_is_checked_before_it_is_classified() -> None:
     # Birch's threshold is the classifier's: 0.3 apart is two subclusters at 0.1
     mc.classify(np.array([[0.3]] * 3 + [[0.6]] * 3))
     assert mc.mode_centres(0).shape == (2, 1)
+
+
+def test_belief_inputs_are_refused_with_their_key() -> None:
+    k = "controller.contacts.belief"
+    eye = np.eye(2)
+    assert _line(ContactBelief, [0.0, 0.0], np.eye(3), eye, eye) == (
+        f"{k}.cov: must be a finite symmetric 2x2 matrix"
+    )
+    assert _line(ContactBelief, [0.0, 0.0], eye, -eye, eye) == (
+        f"{k}.process_noise_cov: must be positive semi-definite (smallest eigenvalue -1)"
+    )
+    assert _line(ContactBelief, [0.0, 0.0], eye, eye, 0 * eye) == (
+        f"{k}.measurement_noise_cov: must be positive definite (smallest eigenvalue 0)"
+    )
+    b = ContactBelief([0.0, 0.0], eye, eye, eye)
+    assert _line(b.mahalanobis, [np.nan, 0.0]) == (
+        f"{k}.x: must be finite, of shape (2,) or (N, 2)"
+    )
+    assert _line(ContactMap, 2, measurement_noise_std=[0.1, -0.1], key="c") == (
+        "c.measurement_noise_std: must be > 0, got [0.1, -0.1]"
+    )
+    assert _line(ContactMap, 2, process_noise_std=-1.0, key="c") == (
+        "c.process_noise_std: must be >= 0, got -1.0"
+    )
+    cm = ContactMap(2, key="c")
+    assert _line(cm.observe, [0.0, 0.0, 0.0]).startswith("c.z: ")
+    assert _line(cm.observe, [0.0, 0.0], v_used=0.1, f_measured=np.nan).startswith("c.f_measured: ")
+
+
+def test_a_known_mode_absorbs_its_own_and_unassigned_points_only() -> None:
+    """Algorithm 1: a batch decided as known mode 1 extends mode 1 with its own points and the
+    unassigned ones, never with points inside mode 0's radius; a batch split between modes
+    below the confidence threshold makes a new mode of the whole batch."""
+    mc = _classifier()  # mode 0 around 0.3 (6 points), mode 1 around 0.9 (6 points)
+    before = dict(mc.mode_counts_)
+    d = mc.classify(np.array([[0.9]] * 4 + [[0.3]] + [[0.6]]))  # 4/6 = 0.67 ≥ 0.6: mode 1
+    assert (d.mode, d.is_new) == (1, False)
+    assert mc.mode_counts_ == {0: before[0], 1: before[1] + 5}
+    split = mc.classify(np.array([[0.3]] * 3 + [[0.9]] * 3))  # 0.5 < 0.6 for each
+    assert split.is_new and mc.mode_counts_[split.mode] == 6
