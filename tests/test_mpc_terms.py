@@ -315,3 +315,24 @@ def test_chance_margin_numpy_and_casadi() -> None:
     np.testing.assert_allclose(np.array(fun(mean)).ravel(), margin, rtol=1e-12)
     with pytest.raises(ConfigError, match="quantile"):
         chance_quantile(0.1, "erf")
+
+
+def test_the_arm_settings_reach_the_joint_torque_term() -> None:
+    """Eq. 11/15's arm: each given key is used (the TCP height z too), the defaults are the
+    documented ones, and an unknown key is refused by name."""
+    from ccm.control.mpc.settings import MPCSettings
+
+    arm = {"shoulder": [0.1, -0.5, 0.2], "l1": 0.28, "l2": 0.33, "z": 0.15, "velocity": "predicted"}
+    jt = MPCSettings.parse({"joint_torque": arm}).joint_torque
+    assert jt is not None
+    np.testing.assert_array_equal(jt.shoulder, [0.1, -0.5, 0.2])
+    assert (jt.l1, jt.l2, jt.z, jt.velocity) == (0.28, 0.33, 0.15, "predicted")
+    default = MPCSettings.parse({"joint_torque": {"l1": 0.3}}).joint_torque
+    np.testing.assert_array_equal(default.shoulder, [0.0, -0.4, 0.3])
+    assert (default.l2, default.z, default.velocity) == (0.35, 0.0, "measured")
+    with pytest.raises(ConfigError) as info:
+        MPCSettings.parse({"joint_torque": {"elbow": 1.0}})
+    assert info.value.key.startswith("controller.mpc.joint_torque")
+    with pytest.raises(ConfigError) as info:
+        MPCSettings.parse({"force_cost": "max"})
+    assert info.value.key == "controller.mpc.force_cost"
