@@ -209,3 +209,20 @@ def test_eq4c_lambda_and_eq4b_stiffness_off_the_midpoint() -> None:
     assert c.stiffness_for(gate(0.75)) == pytest.approx(300.0 + 0.731059 * 2700.0, abs=1e-2)
     assert c.stiffness_for(gate(0.25)) == pytest.approx(300.0 + 0.268941 * 2700.0, abs=1e-2)
     assert (c.stiffness_for(0.0), c.stiffness_for(1.0)) == (3000.0, 300.0)
+
+
+def test_signals_keep_one_key_set_and_damping_follows_lambda_q() -> None:
+    """The log's columns are fixed from reset on (``Controller.signals``), and under
+    ``inertia: model`` K_d is designed for the arm's Λ(q) of each step: at K_p = k_max
+    (nothing learned yet), Λ = diag(4, 1) gives K_d = 2 √(Λ K_p) per axis."""
+    import dataclasses
+
+    c = make(k_free=100.0, k_max=400.0, loop={"damping_rule": "critical", "inertia": "model",
+                                               "mass_kg": 1.0})  # fmt: skip
+    keys = set(c.signals())
+    o = dataclasses.replace(obs(), inertia=np.diag([4.0, 1.0]))
+    c.step(o, target())
+    s = c.signals()
+    assert set(s) == keys and "lambda" in keys
+    k = s["stiffness_Npm"]
+    assert s["damping_Nspm"] == pytest.approx((2 * math.sqrt(4.0 * k) + 2 * math.sqrt(k)) / 2)
