@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from functools import partial
 
 import numpy as np
 import pytest
@@ -25,6 +26,7 @@ from ccm.core.types import Observation, TargetSample
 from ccm.experiment.components import Components, build_components
 from ccm.sim.pymunk.backend import Pymunk2D
 from ccm.tasks.task import load_task
+from tests.refusals import refusal
 
 Composer = Callable[[Sequence[str]], DictConfig]
 DT = 0.001
@@ -358,3 +360,46 @@ def test_signals_keep_one_key_set_with_float_values(make: type[Controller]) -> N
         assert all(isinstance(v, float) for v in s.values()), s
     # a value the controller computes is a number, not a placeholder
     assert sum(np.isfinite(v) for v in c.signals().values()) >= len(keys) - 1
+
+
+_refusal = partial(refusal, ConfigError)
+
+
+def test_bac_learned_state_is_checked_clipped_and_kept() -> None:
+    """BAC's profiles (Yang et al.'s F(k), K(k)): every malformed state is one init_from line;
+    a loaded stiffness is clipped to [k_min, k_max]; no profile yet is a valid state."""
+    c = BAC()
+    c.reset(2, DT)
+    good = {"force_profile": [[0.0, 1.0]], "stiffness_profile": [[300.0, 5000.0]],
+            "trials_learned": 2}  # fmt: skip
+    bad = {
+        "trials_learned": (-1, "invalid learned state: trials_learned: must be an integer >= 0, "
+                           "got -1"),
+        "stiffness_profile": ([[1.0]], "profiles must be (N, dim) alike, got (1, 2), (1, 1)"),
+        "force_profile": ([[np.nan, 1.0]], "profiles must be finite"),
+    }  # fmt: skip
+    for key, (value, line) in bad.items():
+        assert _refusal(c.load_state_dict, {**good, key: value}) == f"init_from: {line}"
+    three = {**good, "force_profile": [[0.0, 1.0, 2.0]], "stiffness_profile": [[1.0] * 3]}
+    assert _refusal(c.load_state_dict, three) == "init_from: profiles are 3-D, the task 2-D"
+    c.load_state_dict(good)
+    np.testing.assert_array_equal(c.stiffness_profile, [[300.0, c.k_max]])
+    assert c.trials_learned == 2 and c.horizon_steps == 1
+    c.load_state_dict({"force_profile": None, "stiffness_profile": None, "trials_learned": 3})
+    assert c.state_dict() == {"force_profile": None, "stiffness_profile": None,
+                              "trials_learned": 3}  # fmt: skip
+    learned3 = BAC()
+    learned3.load_state_dict({**three, "stiffness_profile": [[300.0] * 3]})
+    assert _refusal(learned3.reset, 2, DT) == "controller: learned for 3-D, reset for 2-D"
+
+
+def test_bac_reset_logs_its_initial_gains() -> None:
+    c = BAC(init_stiffness=[300.0, 400.0], init_force=[3.0, 4.0])
+    c.reset(2, DT)
+    assert c.signals() == pytest.approx({
+        "stiffness_Npm": 350.0, "damping_Nspm": (2 * math.sqrt(300.0) + 2 * math.sqrt(400.0)) / 2,
+        "ff_force_N": 5.0, "force_error_N": 0.0, "force_control": 0.0,
+    })  # fmt: skip
+    assert _refusal(BAC(init_stiffness=[100.0, 200.0, 300.0]).reset, 2, DT) == (
+        "controller.init_stiffness: needs 1 or 2 values, got 3"
+    )
