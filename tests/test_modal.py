@@ -280,3 +280,14 @@ def test_3d_changing_surface_revisits_are_known_modes(composer) -> None:
     # the known-mode path of Algorithm 1 ends its high-stiffness period sooner; by how much is
     # seed A's claim (H2-known-mode-shorter-high-stiffness), judged by the report, not here
     assert first["high_stiffness_time_known_s"] < first["high_stiffness_time_new_s"]
+
+
+def test_free_space_contact_state_and_the_switch_flag_start_clear() -> None:
+    """Without a commanded force direction the tool is in no contact: (False, no feature,
+    ‖F‖ = 0 N); after a reset the last step changed no mode."""
+    c = make()
+    z = np.zeros(2)
+    free = TargetSample(0.0, z, z, z, np.zeros(1))
+    rng = np.random.default_rng(0)
+    assert c.modes.contact_state(sliding(0.3, 10.0, 0.1, rng), free) == (False, None, 0.0)
+    assert c.modes.switched is False
