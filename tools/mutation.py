@@ -111,6 +111,8 @@ TARGETS: dict[str, tuple[str | list[str], list[str]]] = {
             "tests/test_contact_regions.py",
             "tests/test_contact_measurement.py",
             "tests/test_region_c.py",
+            "tests/test_replan.py",
+            "tests/test_learned_state.py",
         ],
     ),  # fmt: skip
     "control-mpc": (
@@ -127,7 +129,12 @@ TARGETS: dict[str, tuple[str | list[str], list[str]]] = {
     ),  # fmt: skip
     "control-baselines": (
         "ccm/control/baselines/*",
-        ["tests/test_baselines.py", "tests/test_mrac_kernels.py"],
+        [
+            "tests/test_baselines.py",
+            "tests/test_baseline_laws.py",
+            "tests/test_mrac_kernels.py",
+            "tests/test_learned_state.py",
+        ],
     ),
     "control-core": (
         ["ccm/control/base.py", "ccm/control/impedance.py", "ccm/control/loop.py"],
