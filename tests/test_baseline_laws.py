@@ -9,7 +9,6 @@ or a wrong index shows (the mutation run of ``make mutation`` found these gaps).
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import math
 from functools import partial
 from pathlib import Path
@@ -31,15 +30,36 @@ CONFIGS = Path(__file__).resolve().parents[1] / "configs" / "controller"
 _refusal = partial(refusal, ConfigError)
 
 
+def _shipped(make: type) -> dict:
+    """The controller's config file, without its Hydra entries (defaults list, type, text)."""
+    cfg = OmegaConf.to_container(OmegaConf.load(CONFIGS / f"{make.__name__.lower()}.yaml"))
+    return {k: v for k, v in cfg.items() if k not in ("defaults", "type", "description")}
+
+
 @pytest.mark.parametrize("make", [MRAC, AIC, BAC], ids=["mrac", "aic", "bac"])
 def test_constructor_defaults_are_the_shipped_configs_values(make: type) -> None:
     """Each class docstring says: "Defaults are the tuned values of configs/controller/X.yaml"
-    (a controller built in Python is the one the experiments ran)."""
-    cfg = OmegaConf.to_container(OmegaConf.load(CONFIGS / f"{make.__name__.lower()}.yaml"))
-    params = inspect.signature(make).parameters
-    shared = [k for k in cfg if k in params and k not in ("loop", "key")]
-    assert len(shared) >= 7, shared  # every scalar gain of the law
-    assert {k: params[k].default for k in shared} == {k: cfg[k] for k in shared}
+    (a controller built in Python is the one the experiments ran): the state the defaults
+    build equals the state the config's values build, the loop block included."""
+    cfg = _shipped(make)
+    assert len(cfg) >= 7, cfg  # every scalar gain of the law
+    default, shipped = make(), make(**cfg)
+    np.testing.assert_equal(
+        {k: v for k, v in vars(default).items() if k != "loop"},
+        {k: v for k, v in vars(shipped).items() if k != "loop"},
+    )
+    np.testing.assert_equal(vars(default.loop), vars(shipped.loop))
+
+
+@pytest.mark.parametrize(
+    ("make", "name"),
+    [(m, k) for m in (MRAC, AIC, BAC) for k in _shipped(m) if k != "loop"],
+)
+def test_every_gain_refusal_names_its_key(make: type, name: str) -> None:
+    """A NaN for any gain of the law is one line that starts with its config key."""
+    line = _refusal(make, **{name: float("nan")})
+    assert line.startswith(f"controller.{name}: must be "), line
+    assert "\n" not in line
 
 
 # ----------------------------------------------------------------------------- MRAC
@@ -179,22 +199,37 @@ def test_aic_reset_signals() -> None:
 
 
 @pytest.mark.parametrize(
-    ("make", "steps"),
-    [(partial(MRAC, f0=3.0), 1), (partial(AIC, k_a=5e4), 3), (partial(BAC, init_force=3.0), 1)],
+    "make", [partial(MRAC, f0=3.0), partial(AIC, k_a=5e4), partial(BAC, init_force=3.0)],
     ids=["mrac", "aic", "bac"],
-)
-def test_adaptive_force_never_acts_along_the_force_direction(make: partial, steps: int) -> None:
-    """The adapted feed-forward (MRAC's f, AIC's action u, BAC's F(k)) is nonzero along d = −y,
-    yet the command along d is the force loop's alone, as for the fixed impedance."""
-    seg = target(fdir=(0.0, -1.0), fmag=10.0)
+)  # fmt: skip
+def test_adaptive_force_never_acts_along_the_force_direction(make: partial) -> None:
+    """The adapted feed-forward (MRAC's f, AIC's action u, BAC's F(k)) is built up in free
+    space with a part along y; on a force segment along d = −y the command along d is then
+    the force loop's alone, as for the fixed impedance, and stays so while u keeps adapting."""
+    free, seg = target(), target(fdir=(0.0, -1.0), fmag=10.0)
     ref, c = FixedImpedance(), make()
     for ctrl in (ref, c):
         ctrl.reset(2, DT)
-    for _ in range(steps):
-        o = obs(pos=(0.01, 0.02), vel=(0.0, 0.3))
+    for i in range(3):  # free space, moving: errors for every law to adapt on
+        o = obs(pos=(0.01 * i, 0.02 * i), vel=(0.1 * i, 0.3 * i))
+        ref.step(o, free)
+        c.step(o, free)
+    u_d = c.u[1] if isinstance(c, AIC) else None
+    assert u_d is None or abs(u_d) > 1e-3  # the action has a part along d
+    for i in range(3):
+        o = obs(pos=(0.01, 0.05 + 0.01 * i), vel=(0.0, 0.3 + 0.2 * i))
         expected, got = ref.step(o, seg).force[1], c.step(o, seg).force[1]
-    assert got == pytest.approx(expected, rel=1e-12)
-    assert c.signals()["ff_force_N" if isinstance(c, BAC) else "force_control"] > 0.0
+        assert got == pytest.approx(expected, rel=1e-12)
+    if u_d is not None:  # AIC's action adapts across d only: its part along d is kept
+        assert c.u[1] == pytest.approx(u_d, rel=1e-12)
+
+
+def test_mrac_needs_one_weight_of_its_error() -> None:
+    MRAC(w_p=0.0, w_v=0.1)  # either weight alone adapts the gains
+    MRAC(w_p=1.0, w_v=0.0)
+    assert _refusal(MRAC, w_p=0.0, w_v=0.0) == (
+        "controller.w_p: w_p and w_v are both 0: the gains could not adapt"
+    )
 
 
 # ----------------------------------------------------------------------------- BAC
@@ -213,33 +248,34 @@ def test_bac_two_trials_by_hand() -> None:
            "gamma_stiffness": 1e-6}  # fmt: skip
     c = BAC(init_stiffness=[300.0, 400.0], init_force=[1.0, -2.0], k_min=290.0, **law)
     lam = np.diag([4.0, 9.0])
-    f = np.array([[1.0, -2.0]] * 2)
-    k = np.array([[300.0, 400.0]] * 2)
+    f = np.array([[1.0, -2.0]] * 3)
+    k = np.array([[300.0, 400.0]] * 3)
     trials = [  # (e_p, e_v) per step: target at rest at 0, so x = −e_p, ẋ = −e_v
-        [((0.01, 0.0), (0.0, -0.1)), ((0.01, -0.02), (-0.2, -0.1))],
-        [((0.0, 0.01), (0.05, 0.0)), ((-0.01, 0.0), (0.0, 0.02)), ((0.02, 0.02), (0.1, 0.1))],
+        [((0.01, 0.0), (0.0, -0.1)), ((0.01, -0.02), (-0.2, -0.1)), ((0.0, 0.01), (0.0, 0.0))],
+        [((0.0, 0.01), (0.05, 0.0)), ((-0.01, 0.0), (0.0, 0.02)), ((0.02, 0.02), (0.1, 0.1)),
+         ((0.01, 0.01), (0.0, 0.0))],
         [((0.03, 0.0), (0.0, 0.0))],
-    ]
+    ]  # fmt: skip
     for n_trial, steps in enumerate(trials, start=1):
         c.reset(2, DT)
         for i, (ep, ev) in enumerate(steps):
             ep, ev = np.array(ep), np.array(ev)
             o = _with_inertia(obs(pos=-ep, vel=-ev), lam)
-            idx = min(i, 1)
+            idx = min(i, 2)
             kd = 2.0 * np.sqrt(np.diag(lam) * k[idx])
             np.testing.assert_allclose(
                 c.step(o, target()).force, f[idx] + k[idx] * ep + kd * ev, rtol=1e-12
             )
             assert c.signals()["damping_Nspm"] == pytest.approx(np.mean(kd), rel=1e-12)
         c.end_trial()
-        ep = np.array([s[0] for s in steps[:2]])
-        eps = np.array([s[1] for s in steps[:2]]) + 10.0 * ep
+        ep = np.array([s[0] for s in steps[:3]])
+        eps = np.array([s[1] for s in steps[:3]]) + 10.0 * ep
         m = len(ep)
         f[:m] = f[:m] + 2.0 * (eps - 0.01 * f[:m])
         k[:m] = np.clip(k[:m] + 1e4 * (eps * ep - 1e-6 * k[:m]), 290.0, 3000.0)
         np.testing.assert_allclose(c.force_profile, f, rtol=1e-12)
         np.testing.assert_allclose(c.stiffness_profile, k, rtol=1e-12)
-        assert c.trials_learned == n_trial and c.horizon_steps == 2
+        assert c.trials_learned == n_trial and c.horizon_steps == 3
         if n_trial == 1:
             assert k[1, 0] == 290.0  # the clip acted (287 N/m before it)
 

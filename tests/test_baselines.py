@@ -334,8 +334,8 @@ def test_bac_learns_only_across_the_force_direction() -> None:
     BAC's: the learned F(k) keeps no part along d (γ = 0, F₀ = 0: F = q κ e_p across d)."""
     c = BAC(init_stiffness=300.0, init_force=0.0, kappa=10.0, q_force=2.0, gamma_force=0.0)
     c.reset(2, DT)
-    for _ in range(3):
-        c.step(obs(pos=(-0.01, -0.02)), target(fdir=(0.0, -1.0), fmag=5.0))
+    for _ in range(3):  # position and velocity errors along d as well as across
+        c.step(obs(pos=(-0.01, -0.02), vel=(0.0, 0.3)), target(fdir=(0.0, -1.0), fmag=5.0))
     c.end_trial()
     np.testing.assert_allclose(c.force_profile[:, 1], 0.0, atol=1e-15)
     np.testing.assert_allclose(c.force_profile[:, 0], 2.0 * 10.0 * 0.01, rtol=1e-12)

@@ -97,3 +97,13 @@ def test_controller_estimates_alpha_from_its_demonstrations_and_keeps_it_on_relo
 def test_alpha_must_be_positive_or_demonstrations(alpha: object) -> None:
     with pytest.raises(ConfigError, match="controller.mpc.disturbance.alpha"):
         GPMPC(mpc={"disturbance": {"alpha": alpha}})
+
+
+def test_alpha_from_silent_demonstrations_is_refused_with_the_power() -> None:
+    """α̂ = 0 would switch Eq. 16's cost off without a word: refused, the power named."""
+    with pytest.raises(ConfigError) as err:
+        alpha_from_power([np.zeros(3)])
+    assert str(err.value) == (
+        "mpc.disturbance.alpha: the demonstrations' measured force has no content above the "
+        "split (0.0 N²)"
+    )

@@ -8,7 +8,7 @@ import pytest
 
 from ccm.control.mpc.admittance import rollout
 from ccm.control.mpc.gp_mpc import GPMPC
-from ccm.control.mpc.problem import GPMPCProblem
+from ccm.control.mpc.problem import GPMPCProblem, _ipopt_options
 from ccm.control.mpc.settings import Weights
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
@@ -281,3 +281,17 @@ def test_the_inner_loop_renders_eq4_and_tracks_it_with_pd() -> None:
     expected = 2.0 * (v_new - v0) / 0.001 + 300.0 * (x_new - x) + 40.0 * (v_new - v)
     np.testing.assert_allclose(cmd.force, expected, rtol=1e-12)
     np.testing.assert_allclose(cmd.torque, [-5.0 * (0.3 - 0.2) - 0.5 * 0.4], rtol=1e-12)
+
+
+def test_mpc_block_must_be_settings_or_false_and_report_starts_at_zero() -> None:
+    with pytest.raises(ConfigError) as err:
+        GPMPC(mpc=3)
+    assert str(err.value) == "controller.mpc: must be a mapping of MPC settings or false"
+    report = GPMPC(mpc=False).report()  # before any trial: nothing solved
+    assert (report["mpc_solves"], report["mpc_infeasible"]) == (0, 0)
+
+
+def test_config_ipopt_entries_reach_the_solver_options() -> None:
+    opts = _ipopt_options({"max_iter": 7, "tol": 1e-9})
+    assert (opts["ipopt.max_iter"], opts["ipopt.tol"]) == (7, 1e-9)
+    assert opts["ipopt.warm_start_init_point"] == "yes"  # the defaults stay

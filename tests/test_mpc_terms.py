@@ -336,3 +336,9 @@ def test_the_arm_settings_reach_the_joint_torque_term() -> None:
     with pytest.raises(ConfigError) as info:
         MPCSettings.parse({"force_cost": "max"})
     assert info.value.key == "controller.mpc.force_cost"
+
+
+def test_h2_refusal_names_both_parameters() -> None:
+    with pytest.raises(ConfigError) as err:
+        disturbance_h2(0.0, 300.0)
+    assert str(err.value) == "mpc.disturbance: needs M, D > 0, got M=0.0, D=300.0"
