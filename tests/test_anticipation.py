@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from ccm.control.adaptive.anticipation import AnticipatoryAVIC
+from ccm.control.adaptive.avic import AVIC
 from ccm.control.adaptive.contact_events import TransitionWindow
 from ccm.control.adaptive.contact_regions import region_mask
+from ccm.control.adaptive.logistic import check_calibrate
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
 
@@ -69,6 +71,14 @@ def test_bad_settings_name_the_key() -> None:
         AnticipatoryAVIC(anticipation={"bogus": 1})
     with pytest.raises(ConfigError, match="controller.anticipation.use_kinds"):
         AnticipatoryAVIC(anticipation={"use_kinds": ["vision"]})
+    with pytest.raises(ConfigError) as err:  # anticipation builds on Algorithm 1's modes
+        AnticipatoryAVIC(base=AVIC())
+    assert str(err.value) == "controller.modes: the base AVIC needs Algorithm 1's modes"
+    with pytest.raises(ConfigError) as err:
+        check_calibrate(3, "controller.modes.calibrate")
+    assert str(err.value) == (
+        "controller.modes.calibrate: must be a mapping {trials, quantile, shape} or null, got 3"
+    )
 
 
 # ----------------------------------------------------------------- H4 mechanics (issue #5)
