@@ -367,3 +367,46 @@ def test_transition_controllers_add_the_base_feedforward_when_configured(
         np.testing.assert_allclose(command(kind, [other]), without, atol=1e-12)
     with pytest.raises(ConfigError, match="controller.anticipation.transition_feedforward"):
         make(transition_feedforward=True)
+
+
+THERE_AND_BACK = {
+    "name": "there_and_back",
+    "dim": 2,
+    "start": [0.0, 0.0],
+    "scene": {"gravity": 0.0},
+    "pattern": [
+        {"type": "line", "to": [0.1, 0.0], "duration": 2.0},
+        {"type": "line", "to": [0.0, 0.0], "duration": 2.0},
+    ],
+}
+
+
+def test_every_crossing_of_an_impactless_region_gets_its_window() -> None:
+    """A plan that passes the impact-less contact at x = 5 cm twice (out near t = 1 s, back
+    near t = 3 s): two crossings of region C (the ball of 2 σ around the belief, σ² its
+    covariance plus the measurement noise R, isotropic here), each
+    from the first plan sample inside C to the first outside it, and two windows rising to
+    where C begins; a collision-only controller ignores the contact altogether."""
+    from ccm.tasks.task import load_task
+
+    pattern = load_task(THERE_AND_BACK, 0.001).pattern
+    told = [{"name": "edge", "position": [0.05, 0.0], "kind": "impactless"}]
+    c = make()
+    c.prepare(pattern, told, np.random.default_rng(0))
+    belief = c.contact_map.contacts[0].belief
+    radius = 2.0 * np.sqrt(belief.cov[0, 0] + belief.R[0, 0])
+    assert 0.01 < radius < 0.05
+    ts = np.arange(0.0, 4.0 + 0.0025, 0.005)  # the plan at path_dt
+    dist = np.linalg.norm(pattern.sample_many(ts)["position"] - belief.mean, axis=1)
+    inside = dist <= radius
+    edges = np.flatnonzero(np.diff(inside.astype(int))) + 1  # first in, first out, twice
+    expected = ts[edges].reshape(2, 2)
+    crossings = c._impactless  # noqa: SLF001 - the plan's crossings
+    assert [i for i, *_ in crossings] == [0, 0]
+    np.testing.assert_allclose([(a, b) for _, a, b in crossings], expected, atol=1e-9)
+    windows = c._windows  # noqa: SLF001
+    assert [w.kind for w in windows] == ["impactless", "impactless"]
+    np.testing.assert_allclose([w.t1 for w in windows], expected[:, 0], atol=1e-9)
+    blind = make(use_kinds=["collision"])
+    blind.prepare(pattern, told, np.random.default_rng(0))
+    assert blind.contact_map.contacts == [] and blind._impactless == []  # noqa: SLF001
