@@ -292,14 +292,28 @@ def test_bac_learned_state_needs_both_profiles() -> None:
     np.testing.assert_array_equal(c.stiffness_profile, [[c.k_min, 300.0]])
 
 
-def test_bac_loop_block_is_used_and_named() -> None:
-    """The ``loop`` block reaches D(k) (critical rule: 2 ζ √(m K)), and its errors carry its key."""
+def test_bac_damping_follows_the_loop_block() -> None:
+    """The ``loop`` block reaches D(k) (critical rule: 2 ζ √(m K))."""
     c = BAC(init_stiffness=400.0, loop={"mass_kg": 4.0, "damping_ratio": 0.5})
     c.reset(2, DT)
     assert c.signals()["damping_Nspm"] == pytest.approx(2 * 0.5 * math.sqrt(4.0 * 400.0))
-    assert _refusal(BAC, loop={"damping_ratio": -1.0}) == (
+
+
+@pytest.mark.parametrize("make", [MRAC, AIC, BAC], ids=["mrac", "aic", "bac"])
+def test_loop_block_is_used_and_its_errors_carry_its_key(make: type) -> None:
+    assert make(loop={"rot_stiffness": 7.0}).loop.rot_stiffness == 7.0
+    assert _refusal(make, loop={"damping_ratio": -1.0}) == (
         "controller.loop.damping_ratio: must be > 0, got -1.0"
     )
+
+
+def test_bac_learned_stiffness_is_capped_at_k_max() -> None:
+    """ε e_p = 0.2 · 0.01 over one step with Q_K = 10⁶ would add 2000 N/m: K stops at k_max."""
+    c = BAC(init_stiffness=300.0, k_max=400.0, kappa=10.0, q_stiffness=1e6, gamma_stiffness=0.0)
+    c.reset(2, DT)
+    c.step(obs(pos=(-0.01, 0.0), vel=(-0.1, 0.0)), target())
+    c.end_trial()
+    np.testing.assert_array_equal(c.stiffness_profile, [[400.0, 300.0]])
 
 
 @pytest.mark.parametrize(
