@@ -60,6 +60,7 @@ TARGETS: dict[str, tuple[str | list[str], list[str]]] = {
             "tests/test_mpc_metrics_oracle.py",
             "tests/test_contact_metrics_oracle.py",
             "tests/test_trial_metrics_oracle.py",
+            "tests/test_metric_contracts.py",
             "tests/test_head_to_head.py",
             "tests/test_contact_measurement.py",
             "tests/test_mpc_contact_claims.py",
