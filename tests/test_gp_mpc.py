@@ -9,7 +9,7 @@ import pytest
 from ccm.control.mpc.admittance import rollout
 from ccm.control.mpc.gp_mpc import GPMPC
 from ccm.control.mpc.problem import GPMPCProblem, _ipopt_options
-from ccm.control.mpc.settings import Weights
+from ccm.control.mpc.settings import MPCSettings, Weights
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
 from ccm.learn.gp.gp_force import GPForceModels
@@ -267,8 +267,9 @@ def test_the_inner_loop_renders_eq4_and_tracks_it_with_pd() -> None:
     x⁺ = x + dt v⁺, and the command m a_ref + k_p (x_ref − x) + k_d (v_ref − v); the 2-D
     tool's angle is held by k_rot (θ₀ − θ) − d_rot ω. Every term is non-zero here."""
     ctrl = GPMPC(mpc=False, mass_kg=2.0, inner_kp=300.0, inner_kd=40.0, rot_stiffness=5.0,
-                 rot_damping=0.5)  # fmt: skip
+                 rot_damping=0.5, init_f_ref=[1.5, -0.5])  # fmt: skip
     ctrl.reset(2, 0.001)
+    np.testing.assert_array_equal(ctrl.f_ref, [1.5, -0.5])
     target = TargetSample(0.0, np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(1))
     z = np.zeros(2)
     ctrl.step(Observation(0.0, z, np.array([0.2]), z, np.zeros(1), z, z[:1]), target)
@@ -295,3 +296,50 @@ def test_config_ipopt_entries_reach_the_solver_options() -> None:
     opts = _ipopt_options({"max_iter": 7, "tol": 1e-9})
     assert (opts["ipopt.max_iter"], opts["ipopt.tol"]) == (7, 1e-9)
     assert opts["ipopt.warm_start_init_point"] == "yes"  # the defaults stay
+
+
+def test_demonstrations_run_at_the_demonstration_impedance() -> None:
+    """A demonstration trial uses demo_mass / demo_damping / demo_f_ref (seed B §5: the human
+    leads the robot at a fixed admittance); a trial without an MPC uses the init_ values."""
+    demo = GPMPC(demo_modes=[0], demo_mass=7.0, demo_damping=300.0, demo_f_ref=[2.0, -1.0])
+    demo.reset(2, 0.001)
+    assert demo.demonstrating
+    np.testing.assert_array_equal(np.concatenate([demo.mass, demo.damping, demo.f_ref]),
+                                  [7.0, 7.0, 300.0, 300.0, 2.0, -1.0])  # fmt: skip
+
+
+def test_controller_refusals_are_whole_lines() -> None:
+    def line(fn, *args, **kw) -> str:  # type: ignore[no-untyped-def]
+        with pytest.raises(ConfigError) as err:
+            fn(*args, **kw)
+        return str(err.value)
+
+    assert line(GPMPC, demo_modes=[]) == (
+        "controller.demo_modes: needs at least one demonstration for the GPs"
+    )
+    assert line(GPMPC(mpc=False, init_mass=[1.0, 2.0, 3.0]).reset, 2, 0.001) == (
+        "controller.init_mass: needs 1 or 2 values"
+    )
+    key = "controller.mpc"
+    assert line(MPCSettings.parse, {"chance": 3}, key) == (
+        "controller.mpc.chance: must be a mapping with keys f_max, epsilon, quantile"
+    )
+    assert line(MPCSettings.parse, {"f_ref_target": [float("nan"), 0.0]}, key) == (
+        "controller.mpc.f_ref_target: must be finite, got [nan, 0.0]"
+    )
+    wd = {"well_damped": {"stiffness": "fixed", "fixed_stiffness": -1.0}}
+    assert line(MPCSettings.parse, wd, key) == (
+        "controller.mpc.well_damped.fixed_stiffness: must be > 0, got -1.0"
+    )
+    assert line(MPCSettings.parse, {"disturbance": {"omega_p": 0.0}}, key) == (
+        "controller.mpc.disturbance.omega_p: must be > 0, got 0.0"
+    )
+
+
+def test_mpc_settings_read_their_keys() -> None:
+    wd = {"stiffness": "fixed", "fixed_stiffness": 900.0}
+    st = MPCSettings.parse({"damping_bounds": [100.0, 200.0], "well_damped": wd}, "mpc")
+    assert tuple(st.damping_bounds) == (100.0, 200.0)
+    assert st.well_damped == (1.2, 900.0)  # ζ = 1.2 by default (seed B §6.1)
+    ctrl = GPMPC(mpc={"disturbance": {"alpha": "demonstrations"}})
+    assert ctrl._split_hz == pytest.approx(15.0)  # noqa: SLF001 - ω_p = 2π · 15 rad/s

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+import sys
 
 import casadi as ca
 import numpy as np
@@ -126,3 +127,13 @@ def test_gp_mpc_compiled_same_solution_along_a_closed_loop(tmp_path, monkeypatch
         m, d, fr = s1.mass, s1.damping, s1.f_ref
         a, b = system_matrices(m, d, 0.01)
         xi = a @ xi + b @ (np.array([5.0 - 15000.0 * max(0.0, xi[0]), 0.0]) - fr)
+
+
+def test_a_failing_build_step_is_named_with_its_last_error_line() -> None:
+    """The compiler's last stderr line (its error) names why the build fell back."""
+    script = (
+        "import sys; sys.stdout.write('noise\\n'); sys.stderr.write('a\\nboom\\n'); sys.exit(3)"
+    )
+    with pytest.raises(RuntimeError) as err:
+        mc._run([sys.executable, "-c", script])
+    assert str(err.value) == f"{sys.executable} failed: boom"

@@ -342,3 +342,22 @@ def test_h2_refusal_names_both_parameters() -> None:
     with pytest.raises(ConfigError) as err:
         disturbance_h2(0.0, 300.0)
     assert str(err.value) == "mpc.disturbance: needs M, D > 0, got M=0.0, D=300.0"
+
+
+def test_joint_torque_weights_of_every_accepted_shape_agree() -> None:
+    """Q_τ as a scalar, (1,), (1, 1), a diagonal (4,) or (4, 1), or the (4, 4) matrix: the
+    same cost for the same weights (Eq. 15)."""
+    x, f, sh = np.array([0.4, 0.1, 0.3]), np.array([2.0, -1.0, 0.5]), np.zeros(3)
+    scalar = joint_torque_cost(x, f, 2.0, sh)
+    for q in (np.array([2.0]), np.array([[2.0]]), np.full(4, 2.0), np.full((4, 1), 2.0),
+              2.0 * np.eye(4)):  # fmt: skip
+        assert joint_torque_cost(x, f, q, sh) == pytest.approx(scalar, rel=1e-12)
+    with pytest.raises(ConfigError) as err:
+        joint_torque_cost(x, f, np.ones((2, 1)), sh)
+    assert str(err.value) == "arm.q_tau: must be a scalar, (4,) or (4, 4), got shape (2, 1)"
+
+
+def test_chance_quantile_errors_carry_the_mpc_key() -> None:
+    with pytest.raises(ConfigError) as err:
+        chance_quantile(1.5)
+    assert str(err.value) == "mpc.chance.epsilon: must be in (0, 1), got 1.5"

@@ -124,7 +124,6 @@ class GPMPC(Controller):
         self._trials_done = 0
         self._problem: Any = None
         self._needs_fit = False  # set by load_state_dict; fitted at the next reset
-        self.infeasible_total = 0
         self._timing: list[float] = []
         self._iterations: list[int] = []
         self._cpu: list[float] = []  # process CPU time of each solve: robust to a shared machine
@@ -299,7 +298,6 @@ class GPMPC(Controller):
             self.f_ref, self.mass, self.damping = sol.f_ref, sol.mass, sol.damping
         else:  # keep the last feasible command (issue #7 acceptance) and count the event
             self.infeasible += 1
-            self.infeasible_total += 1
 
     def _terminal_variance(self, predicted: np.ndarray) -> np.ndarray:
         """Σ^f that the solve saw at its plan's last point ξ_{t+H} (where Eq. 18 is imposed,

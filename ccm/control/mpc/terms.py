@@ -187,7 +187,10 @@ def joint_torque_cost(
     tau = jac.T @ _vec(lib, f_hand, 3, "arm.f_hand")
     if lib is np or not isinstance(q_tau, lib.MX | lib.SX | lib.DM):
         q_tau = np.asarray(q_tau, dtype=float)
-        q_tau = q_tau.reshape(4) if q_tau.shape == (4, 1) else q_tau
+        if q_tau.shape in ((1,), (1, 1)):  # a scalar weight, element-wise below
+            q_tau = q_tau.reshape(())
+        elif q_tau.shape == (4, 1):
+            q_tau = q_tau.reshape(4)
         q_tau = q_tau if lib is np else lib.DM(q_tau)
     shape = tuple(q_tau.shape)
     if shape in ((), (1,), (1, 1), (4,), (4, 1)):
