@@ -410,3 +410,30 @@ def test_every_crossing_of_an_impactless_region_gets_its_window() -> None:
     blind = make(use_kinds=["collision"])
     blind.prepare(pattern, told, np.random.default_rng(0))
     assert blind.contact_map.contacts == [] and blind._impactless == []  # noqa: SLF001
+
+
+def test_a_stall_at_the_expected_contact_updates_its_belief_and_eq9(pattern) -> None:
+    """A quasi-static contact (no impact for the detector) at the expected contact: hit 2,
+    once; the map's contact 0 takes the measurement (no new contact) and its Eq. 9 model one
+    (v_used, f_measured) pair, the stall's speed and peak force."""
+    c = make()
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    c._windows = [TransitionWindow(0, "collision", 0.0, 0.0, 10.0)]  # noqa: SLF001
+    contact = c.contact_map.contacts[0]
+    cov0, n0 = np.trace(contact.belief.cov), len(contact.approach.velocities)
+    moving = TargetSample(0.0, np.array([0.0, 0.09]), np.array([0.0, 0.03]), np.zeros(2),
+                          np.zeros(1))  # fmt: skip
+    hits = []
+    for k in range(400):
+        t = k * 0.001
+        stalled = t >= 0.1
+        force = (0.0, -6.0) if t >= 0.12 else (0.0, 0.0)
+        o = obs_at(t, pos=(0.0, 0.08), vel=(0.0, 0.0 if stalled else 0.03), force=force)
+        c._vel_hist.append((t, moving.velocity))  # noqa: SLF001
+        c._force_hist.append((t, o.force.copy()))  # noqa: SLF001
+        c._target_hist.append((t, moving.position))  # noqa: SLF001
+        hits.append(c._contact_made(o, moving, None))  # noqa: SLF001
+    assert sorted(set(hits)) == [0.0, 2.0] and hits.count(2.0) == 1
+    assert len(c.contact_map.contacts) == 1 and contact.updated_this_trial
+    assert np.trace(contact.belief.cov) < cov0  # the measurement narrowed the belief
+    assert len(contact.approach.velocities) == n0 + 1
