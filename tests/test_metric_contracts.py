@@ -134,3 +134,19 @@ def test_metric_settings_refusals_name_their_keys() -> None:
     assert _line(trial_metrics, log, 2, 0.001, 1.0, 0.0, 0.01) == (
         "metrics.lowpass_hz: must be > 0, got 0.0"
     )
+
+
+@pytest.mark.parametrize(
+    ("event", "runs"),
+    [([0, 1, 1, 1, 0, 0, 1, 1, 0], 2), ([1, 1, 0, 1], 2), ([0, 0, 0], 0), ([1, 1, 1], 1)],
+)
+def test_collision_events_are_counted_as_runs(event: list[int], runs: int) -> None:
+    """``n_collision_events``: runs of consecutive steps with ``collision_event`` > 0 (a
+    detector that holds its flag for several steps reports one event)."""
+    n = len(event)
+    log = {"t": np.arange(n) * 0.001, "collision_event": np.array(event, float)}
+    assert contact_metrics(log, 2, {"lowpass_hz": 20.0})["n_collision_events"] == runs
+
+
+def test_two_trials_make_a_learning_curve() -> None:
+    assert learning_curve(_trials(0.2, 0.1), last_n=1)["rms_error_last_over_first"] == 0.5
