@@ -437,3 +437,74 @@ def test_a_stall_at_the_expected_contact_updates_its_belief_and_eq9(pattern) -> 
     assert len(c.contact_map.contacts) == 1 and contact.updated_this_trial
     assert np.trace(contact.belief.cov) < cov0  # the measurement narrowed the belief
     assert len(contact.approach.velocities) == n0 + 1
+
+
+def test_a_mode_change_records_the_impactless_contact_and_closes_its_window(pattern) -> None:
+    """Algorithm 1 deciding a new mode (``mode_event`` > 0, mode 0 → 1) is an impact-less
+    contact event: the expected impact-less contact (its window open) takes the measurement
+    where the trigger fired, and its window is released now and marked done. No decision
+    (even as the contact is lost), a decision out of free space (contact made, recorded as a
+    collision if at all) and one that keeps the mode record nothing."""
+    told = [{"name": "edge", "position": [0.0, 0.08], "kind": "impactless"}]
+    c = make()
+    c.prepare(pattern, told, np.random.default_rng(0))
+    window = TransitionWindow(0, "impactless", 0.0, 0.5, 10.0)
+    c._windows = [window]  # noqa: SLF001
+    contact = c.contact_map.contacts[0]
+    cov0 = np.trace(contact.belief.cov)
+    signals = {"mode_event": 0.0, "mode": 0.0}
+    c.base.signal = signals.__getitem__  # Algorithm 1's outputs of this step
+    c._trigger_pos = np.array([0.0, 0.081])  # noqa: SLF001 - where the trigger fired
+    c._trigger_target = (np.array([0.0, 0.09]), np.array([0.0, 0.03]))  # noqa: SLF001
+    c._impactless_event(obs_at(1.0))  # noqa: SLF001 - mode 0 learned, no decision
+    signals.update(mode=-1.0)
+    c._impactless_event(obs_at(1.2))  # noqa: SLF001 - contact lost: free space, no decision
+    signals.update(mode_event=1.0, mode=0.0)
+    c._impactless_event(obs_at(1.4))  # noqa: SLF001 - decided from free space: a contact
+    c._impactless_event(obs_at(1.5))  # noqa: SLF001 - a decision that keeps mode 0
+    assert not contact.updated_this_trial and not window.done
+    signals.update(mode_event=2.0, mode=1.0)
+    c._impactless_event(obs_at(2.0))  # noqa: SLF001 - mode 1: the surface changed
+    assert contact.updated_this_trial and np.trace(contact.belief.cov) < cov0
+    assert len(c.contact_map.contacts) == 1  # the expected contact, not a new one
+    assert (window.release, window.done) == (2.0, True)
+
+
+def test_crossings_are_in_the_order_the_plan_meets_them() -> None:
+    """Two impact-less contacts listed far one first: the plan meets the near one (5 cm
+    before the far one) first on the way out and last on the way back; the crossings and
+    their windows follow the plan's order, not the list's."""
+    from ccm.tasks.task import load_task
+
+    pattern = load_task(THERE_AND_BACK, 0.001).pattern
+    told = [{"name": "far", "position": [0.08, 0.0], "kind": "impactless"},
+            {"name": "near", "position": [0.03, 0.0], "kind": "impactless"}]  # fmt: skip
+    c = make(init_std=0.005)
+    c.prepare(pattern, told, np.random.default_rng(0))
+    crossings = c._impactless  # noqa: SLF001
+    starts = [start for _, start, _ in crossings]
+    assert starts == sorted(starts) and len(starts) >= 3
+    assert crossings[0][0] == 1 and crossings[-1][0] == 1  # near: first out, last back
+    assert [w.contact for w in c._windows] == [i for i, *_ in crossings]  # noqa: SLF001
+
+
+def test_no_quasi_static_contact_without_an_open_collision_window(pattern) -> None:
+    """The stall-and-rise of the first test, with only a closed (done) collision window and
+    an impact-less one: no contact is declared."""
+    c = make()
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    c._windows = [TransitionWindow(0, "collision", 0.0, 0.0, 10.0, done=True),  # noqa: SLF001
+                  TransitionWindow(1, "impactless", 0.0, 0.0, 10.0)]  # fmt: skip
+    moving = TargetSample(0.0, np.zeros(2), np.array([0.0, 0.03]), np.zeros(2), np.zeros(1))
+    fired: list[float] = []
+    for k in range(400):
+        t = k * 0.001
+        force = (0.0, -6.0) if t >= 0.12 else (0.0, 0.0)
+        press_step(c, t, moving, obs_at(t, vel=(0.0, 0.0 if t >= 0.1 else 0.03), force=force),
+                   fired)  # fmt: skip
+    assert fired == []
+
+
+def test_from_config_builds_the_base_from_the_rest_of_the_block() -> None:
+    c = AnticipatoryAVIC.from_config({"k_free": 123.0, "k_max": 2500.0, "anticipation": {}})
+    assert (c.base.k_free, c.base.k_max, c.k_collision) == (123.0, 2500.0, 123.0)

@@ -71,3 +71,12 @@ def test_rate_changes_of_a_plan_that_starts_inside_c() -> None:
     warp, rate0 = rate_changes(changes, TimeWarp(), 1.0, slow, set(), 0.0, 0.0, 0.4)
     assert rate0 == 0.5 and warp.rate0 == 0.5
     np.testing.assert_allclose(changes, [(2.0, 2.4, 1.0)], atol=1e-9)
+
+
+def test_transition_weight_follows_eq10_and_fades_after_release() -> None:
+    """Eq. 10: α = (t − t0) / (t1 − t0) over the rise (α = t / T with T = t1 − t0), 1 until
+    the release, then a linear fade over ``blend_s``; 0 before t0."""
+    w = TransitionWindow(0, "collision", t0=1.0, t1=1.5, release=3.0)
+    blend = 0.2
+    got = [w.alpha(t, blend) for t in (0.9, 1.0, 1.125, 1.25, 1.5, 2.0, 3.0, 3.05, 3.2, 3.5)]
+    np.testing.assert_allclose(got, [0.0, 0.0, 0.25, 0.5, 1.0, 1.0, 1.0, 0.75, 0.0, 0.0])
