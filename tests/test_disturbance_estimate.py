@@ -107,3 +107,14 @@ def test_alpha_from_silent_demonstrations_is_refused_with_the_power() -> None:
         "mpc.disturbance.alpha: the demonstrations' measured force has no content above the "
         "split (0.0 N²)"
     )
+
+
+def test_estimate_refusals_name_their_keys() -> None:
+    with pytest.raises(ConfigError) as err:
+        alpha_from_power([])
+    assert str(err.value) == (
+        "mpc.disturbance.alpha: estimating α needs at least one demonstration"
+    )
+    with pytest.raises(ConfigError) as err:
+        high_freq_power(np.zeros((10, 2)), 0.001, 0.0)
+    assert str(err.value) == "disturbance_estimate.split_hz: must be > 0, got 0.0"

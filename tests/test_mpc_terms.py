@@ -361,3 +361,9 @@ def test_chance_quantile_errors_carry_the_mpc_key() -> None:
     with pytest.raises(ConfigError) as err:
         chance_quantile(1.5)
     assert str(err.value) == "mpc.chance.epsilon: must be in (0, 1), got 1.5"
+
+
+def test_a_hand_force_of_the_wrong_size_is_one_line() -> None:
+    with pytest.raises(ConfigError) as err:
+        joint_torque_cost(np.array([0.4, 0.1, 0.3]), np.array([1.0, 2.0]), 1.0, np.zeros(3))
+    assert str(err.value) == "arm.f_hand: must have 3 entries, got shape (2,)"
