@@ -367,3 +367,33 @@ def test_a_hand_force_of_the_wrong_size_is_one_line() -> None:
     with pytest.raises(ConfigError) as err:
         joint_torque_cost(np.array([0.4, 0.1, 0.3]), np.array([1.0, 2.0]), 1.0, np.zeros(3))
     assert str(err.value) == "arm.f_hand: must have 3 entries, got shape (2,)"
+
+
+def test_belief_floor_rescales_until_no_mode_is_below_it() -> None:
+    """``min_belief`` 0.3 on b = [0.6, 0.35, 0.05] with equal likelihoods: flooring the third
+    (rest 0.7 over 0.95) drops the second to 0.258, so it is floored too: [0.4, 0.3, 0.3]. A
+    floor of exactly 1/N is allowed and makes the belief uniform."""
+    b, f, mu, var = [0.6, 0.35, 0.05], [1.0], [[0.0]] * 3, [[1.0]] * 3
+    np.testing.assert_allclose(belief_update(b, f, mu, var), b, rtol=1e-12)
+    np.testing.assert_allclose(belief_update(b, f, mu, var, min_belief=0.3), [0.4, 0.3, 0.3],
+                               rtol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(belief_update(b, f, mu, var, min_belief=1 / 3), [1 / 3] * 3)
+
+
+@pytest.mark.parametrize(
+    ("args", "line"),
+    [
+        (([], [1.0], [], []), "mpc.belief: needs belief (N,), f (d,), means and variances "
+                              "(N, d); got (0,), (1,), (1, 0), (1, 0)"),
+        (([1.0], [np.nan], [[0.0]], [[1.0]]), "mpc.belief: f, means and variances must be finite"),
+        (([1.0], [0.0], [[0.0]], [[0.0]]), "mpc.belief.variances: must be > 0, got min 0.0"),
+        (([0.5, 0.6], [0.0], [[0.0]] * 2, [[1.0]] * 2),
+         "mpc.belief: must be a probability vector, got [0.5, 0.6]"),
+        (([0.5, 0.5], [0.0], [[0.0]] * 2, [[1.0]] * 2, 0.6),
+         "mpc.belief.min_belief: must be in [0, 1/N], got 0.6"),
+    ],
+)  # fmt: skip
+def test_belief_update_refusals_are_whole_lines(args: tuple, line: str) -> None:
+    with pytest.raises(ConfigError) as err:
+        belief_update(*args)
+    assert str(err.value) == line
