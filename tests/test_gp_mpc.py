@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.control.mpc.admittance import rollout
+from ccm.control.mpc.admittance import rollout, system_matrices
 from ccm.control.mpc.gp_mpc import GPMPC
 from ccm.control.mpc.problem import GPMPCProblem, _ipopt_options
 from ccm.control.mpc.settings import MPCSettings, Weights
@@ -343,3 +343,20 @@ def test_mpc_settings_read_their_keys() -> None:
     assert st.well_damped == (1.2, 900.0)  # ζ = 1.2 by default (seed B §6.1)
     ctrl = GPMPC(mpc={"disturbance": {"alpha": "demonstrations"}})
     assert ctrl._split_hz == pytest.approx(15.0)  # noqa: SLF001 - ω_p = 2π · 15 rad/s
+
+
+def test_the_reference_force_ramps_at_its_rate_limit_over_the_horizon(gp2: GPForceModels) -> None:
+    """Eq. 13's rate limit |f^r_k − f^r_{k−1}| ≤ 10 N per MPC step, from f^r_prev = 25 N to
+    the −15 N target: 15, 5, −5, then −15 N. The plan's f^r_k is read back from its predicted
+    states through Eq. 7, μ_{k+1} = A μ_k + B (μ^f(μ_k) − f^r_k), with the solved M, D."""
+    prob = _problem(gp2)
+    sol = prob.solve(_state(), [1.0], M0, D0, np.array([25.0, 0.0]))
+    assert sol.success, sol.status
+    a, b = (np.asarray(m) for m in system_matrices(sol.mass, sol.damping, 0.01))
+    mus = sol.predicted[0]
+    f_ref = [
+        gp2.predict(mus[k][None, :2])[0][0] - np.linalg.lstsq(b, mus[k + 1] - a @ mus[k])[0]
+        for k in range(prob.horizon)
+    ]
+    np.testing.assert_allclose(np.array(f_ref)[:, 0], [15.0, 5.0, -5.0, -15.0, -15.0, -15.0],
+                               atol=1e-3)  # fmt: skip
