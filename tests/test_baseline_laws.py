@@ -22,12 +22,9 @@ from ccm.control.baselines.aic import AIC
 from ccm.control.baselines.bac import BAC
 from ccm.control.baselines.mrac import MRAC, _expm, reference_model_discrete
 from ccm.control.impedance import FixedImpedance
-from ccm.core.errors import ConfigError
-from tests.refusals import refusal
-from tests.test_baselines import DT, obs, target
+from tests.test_baselines import DT, _refusal, obs, target
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs" / "controller"
-_refusal = partial(refusal, ConfigError)
 
 
 def _shipped(make: type) -> dict:

@@ -3,6 +3,8 @@ stochastic propagation (Eq. 7-8) against Monte Carlo."""
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import pytest
 
@@ -13,6 +15,7 @@ from ccm.control.mpc.settings import MPCSettings, Weights
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
 from ccm.learn.gp.gp_force import GPForceModels
+from tests.refusals import refusal
 
 K_WALL = 45000.0  # N/m, seed B's medium environment
 
@@ -309,11 +312,7 @@ def test_demonstrations_run_at_the_demonstration_impedance() -> None:
 
 
 def test_controller_refusals_are_whole_lines() -> None:
-    def line(fn, *args, **kw) -> str:  # type: ignore[no-untyped-def]
-        with pytest.raises(ConfigError) as err:
-            fn(*args, **kw)
-        return str(err.value)
-
+    line = partial(refusal, ConfigError)
     assert line(GPMPC, demo_modes=[]) == (
         "controller.demo_modes: needs at least one demonstration for the GPs"
     )

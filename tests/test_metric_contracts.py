@@ -8,6 +8,8 @@ refusal that loses its key, a goal read from the first row instead of the last.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import pytest
 
@@ -21,13 +23,10 @@ from ccm.metrics.trial import (
     learning_curve,
     trial_metrics,
 )
+from tests.refusals import refusal
 from tests.test_mpc_metrics_oracle import PARAMS, _log
 
-
-def _line(fn, *args) -> str:  # type: ignore[no-untyped-def]
-    with pytest.raises(ConfigError) as err:
-        fn(*args)
-    return str(err.value)
+_line = partial(refusal, ConfigError)
 
 
 # ----------------------------------------------------------------------------- learning curve
