@@ -17,6 +17,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -326,6 +327,95 @@ def test_a_signal_ends_a_run_with_one_line_and_an_interrupted_record(
     assert summary["error"].startswith(f"interrupted by {sig.name} after ")
     assert 1 <= len(summary["trials"]) <= len(_trial_files(run))  # what had finished
     assert not list(run.rglob(".lock")) and not list(run.rglob("*.tmp"))
+
+
+class _SignalledInDestructor:
+    """Sends this process ``sig`` from ``__del__``; Python runs the handler there, where an
+    exception is "ignored" (as in pymunk's cffi ``ffi.gc`` destructor of its space)."""
+
+    def __init__(self, sig: signal.Signals) -> None:
+        self.sig = sig
+
+    def __del__(self) -> None:
+        os.kill(os.getpid(), self.sig)
+        sum(range(1000))  # bytecode after the kill: the handler runs inside __del__
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=lambda s: s.name)
+def test_a_signal_a_destructor_swallows_is_raised_at_the_next_trial_boundary(
+    sig: signal.Signals, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The cause of an intermittent SIGTERM run that ended ``ok`` with exit 0: the handler's
+    RunInterrupted, raised inside a destructor, was printed as "Exception ignored" and lost."""
+    from ccm.experiment.interrupts import RunInterrupted, interrupts_raise, raise_if_interrupted
+
+    reached = []
+    with pytest.raises(RunInterrupted) as caught:
+        with interrupts_raise():
+            _SignalledInDestructor(sig)  # dropped at once: __del__ runs here
+            reached.append("after the destructor")  # the exception did not propagate
+            raise_if_interrupted()  # the runner's check after each trial
+            reached.append("after the check")
+    assert reached == ["after the destructor"] and caught.value.signum == sig
+    assert "Exception ignored" not in capsys.readouterr().err  # one line, no traceback
+    raise_if_interrupted()  # emptied when the block ended: nothing pending
+    assert signal.getsignal(sig) is not signal.SIG_IGN  # the previous handlers are back
+
+
+def test_a_swallowed_signal_after_the_last_trial_still_ends_the_block_interrupted() -> None:
+    from ccm.experiment.interrupts import RunInterrupted, interrupts_raise
+
+    hook = sys.unraisablehook
+    with pytest.raises(RunInterrupted, match="SIGTERM"):
+        with interrupts_raise():
+            _SignalledInDestructor(signal.SIGTERM)
+    assert sys.unraisablehook is hook
+
+
+def test_the_trial_loop_raises_a_swallowed_signal_after_the_trial_it_ended(
+    composer, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The runner's check: the run stops after the trial in which a destructor swallowed the
+    signal, with that trial among the finished ones (the interrupted record keeps them)."""
+    from ccm.experiment import runner
+    from ccm.experiment.interrupts import RunInterrupted, interrupts_raise
+
+    real = runner.run_trial
+    calls = []
+
+    def run_trial(*args: Any, **kwargs: Any) -> Any:
+        calls.append(1)
+        if len(calls) == 2:
+            _SignalledInDestructor(signal.SIGTERM)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "run_trial", run_trial)
+    args = ["experiment=smoke", "experiment.max_time_s=0.05", "experiment.figures=false"]
+    finished: list[dict] = []
+    with pytest.raises(RunInterrupted), interrupts_raise():
+        runner.run_experiment(composer(args), lambda extra: composer([*args, *extra]),
+                              tmp_path, False, finished=finished)  # fmt: skip
+    assert len(calls) == 2 and [t["trial"] for t in finished] == [1, 2]
+    assert not (tmp_path / "summary.json").exists()
+
+
+def test_other_unraisable_exceptions_still_reach_the_previous_hook() -> None:
+    from ccm.experiment.interrupts import interrupts_raise
+
+    seen: list[BaseException] = []
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda u: seen.append(u.exc_value)
+    try:
+        with interrupts_raise():
+
+            class Broken:
+                def __del__(self) -> None:
+                    raise ValueError("from a destructor")
+
+            Broken()
+    finally:
+        sys.unraisablehook = hook
+    assert [str(e) for e in seen] == ["from a destructor"]
 
 
 def _children(pid: int) -> set[int]:

@@ -107,15 +107,51 @@ def interrupts_raise(
         raise RunInterrupted(signum)
 
     previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous_hook = sys.unraisablehook
+    sys.unraisablehook = _keep_swallowed(previous_hook)
     restore = True
     try:
         yield
+        raise_if_interrupted()  # swallowed after the last trial boundary
     except RunInterrupted:
         restore = restore_on_interrupt
         raise
     finally:
+        sys.unraisablehook = previous_hook
+        _SWALLOWED.clear()
         for sig, old in previous.items() if restore else ():
             signal.signal(sig, old)
+
+
+#: a :class:`RunInterrupted` that Python could not propagate: the signal arrived inside a
+#: callback whose exceptions are "ignored" (a cffi ``ffi.gc`` destructor such as pymunk's
+#: space, a ``__del__``, a weakref callback). Process-wide, as the signal disposition it
+#: stands for; only :func:`interrupts_raise` fills and empties it.
+_SWALLOWED: list[RunInterrupted] = []
+
+
+def _keep_swallowed(
+    previous: Callable[[Any], object],
+) -> Callable[[Any], object]:
+    """A ``sys.unraisablehook`` that keeps a swallowed :class:`RunInterrupted` for
+    :func:`raise_if_interrupted` (without the "Exception ignored" traceback: the run still
+    ends with one line) and passes every other unraisable exception to ``previous``."""
+
+    def hook(unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, RunInterrupted):
+            _SWALLOWED.append(unraisable.exc_value)
+        else:
+            previous(unraisable)
+
+    return hook
+
+
+def raise_if_interrupted() -> None:
+    """Raise the :class:`RunInterrupted` of a signal whose exception a callback swallowed
+    (:data:`_SWALLOWED`), if any: the trial loop calls this at each trial boundary, so such a
+    run still ends ``interrupted`` with its finished trials instead of running on to ``ok``."""
+    if _SWALLOWED:
+        raise _SWALLOWED[0]
 
 
 def launcher_env() -> AbstractContextManager[None]:

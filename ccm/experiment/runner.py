@@ -39,6 +39,7 @@ from ccm.experiment.components import (
     trial_seed,
 )
 from ccm.experiment.config_check import check_trial_steps, trial_duration
+from ccm.experiment.interrupts import raise_if_interrupted
 from ccm.experiment.trial import run_trial
 from ccm.metrics.contacts import contact_table
 from ccm.metrics.trial import (
@@ -164,6 +165,7 @@ def _run_condition(
             kept[1:] = []  # keep the first and the latest trial's log for figures
             kept.append(rec.arrays())
             controller.end_trial()
+            raise_if_interrupted()  # a signal a destructor swallowed
         comp.sim.close()
 
 
