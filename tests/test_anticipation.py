@@ -508,3 +508,130 @@ def test_no_quasi_static_contact_without_an_open_collision_window(pattern) -> No
 def test_from_config_builds_the_base_from_the_rest_of_the_block() -> None:
     c = AnticipatoryAVIC.from_config({"k_free": 123.0, "k_max": 2500.0, "anticipation": {}})
     assert (c.base.k_free, c.base.k_max, c.k_collision) == (123.0, 2500.0, 123.0)
+
+
+def test_a_contact_made_during_the_slow_down_keeps_the_change_under_way(pattern) -> None:
+    """A collision detected halfway through the Eq. 11 slow-down: the re-plan keeps that
+    rate change (it began before the contact; φ and its rate stay continuous), adds the
+    speed-up back to the plan's speed where the slow-down ends, and keeps the windows of
+    the impact-less crossing already passed, once."""
+    told = [{"name": "edge", "position": [0.0, 0.13], "kind": "impactless"}, *CONTACT]
+    c = make(init_std=0.005)
+    retimed = c.prepare(pattern, told, np.random.default_rng(0))
+    slow, _ = c._changes  # noqa: SLF001 - the slow-down to v_a and the speed-up after C
+    t_s, t_e, rho = slow
+    assert rho < 1.0 and t_e < 1.0  # the contact is made well inside the first second
+    windows = [(w.contact, w.kind) for w in c._windows]  # noqa: SLF001
+    assert sorted(windows) == [(0, "impactless"), (1, "collision")]
+    t_hit = 0.5 * (t_s + t_e)
+    phi, rate = retimed.warp.phi(t_hit), retimed.warp.rate(t_hit)
+    c._release(1, t_hit)  # noqa: SLF001 - as a detected collision at the expected contact
+    assert c._changes == [slow, (t_e, t_e + c.cfg.blend_s, 1.0)]  # noqa: SLF001
+    assert retimed.warp.phi(t_hit) == pytest.approx(phi, abs=1e-12)
+    assert retimed.warp.rate(t_hit) == pytest.approx(rate, abs=1e-12)
+    assert retimed.warp.rate(t_e + c.cfg.blend_s + 1e-6) == pytest.approx(1.0)
+    assert sorted((w.contact, w.kind) for w in c._windows) == sorted(windows)  # noqa: SLF001
+
+
+def _pressed_command(c: AnticipatoryAVIC, kind: str, velocity: tuple[float, float]) -> float:
+    """The command along a 10 N press down with one transition window of ``kind`` at α = 1
+    and the target moving at ``velocity``."""
+    press = np.array([0.0, -1.0])
+    tgt = TargetSample(0.0, np.zeros(2), np.array(velocity, float), np.zeros(2), np.zeros(1),
+                       press, 10.0)  # fmt: skip
+    c.reset(2, 0.001)
+    c._windows = [TransitionWindow(0, kind, 0.0, 0.0, 10.0)]  # noqa: SLF001 - alpha = 1
+    return float(c.step(obs_at(0.0), tgt).force @ press)
+
+
+def test_impactless_transition_keeps_the_force_loop_along_the_motion_too(pattern) -> None:
+    """Eq. 8 around an impact-less transition (K* = K_max) keeps the hybrid law's force loop
+    whatever the direction of motion: ~F_d (1 + k_fp) pressed along the press, also where the
+    target moves along it (only the collision controller drops the loop there)."""
+    c = make()
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    pressed = 10.0 * (1 + c.base.loop.force_kp)
+    assert _pressed_command(c, "impactless", (0.05, 0.0)) == pytest.approx(pressed, rel=0.05)
+    assert _pressed_command(c, "impactless", (0.0, -0.05)) == pytest.approx(pressed, rel=0.05)
+    assert abs(_pressed_command(c, "collision", (0.0, -0.05))) < 10.0
+
+
+def test_the_step_keeps_where_algorithm_1_triggered(pattern, monkeypatch) -> None:
+    """The position (and target) of the step whose ``mode_trigger`` is 1 is where the next
+    impact-less contact is measured; steps without a trigger leave it."""
+    c = make()
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    trigger = [0.0]  # Algorithm 1's mode_trigger this step
+    real = c.base.signal
+    monkeypatch.setattr(
+        c.base, "signal", lambda name: trigger[0] if name == "mode_trigger" else real(name)
+    )
+    for t, y, fired in ((0.0, 0.10, 0.0), (0.001, 0.09, 1.0), (0.002, 0.08, 0.0)):
+        trigger[0] = fired
+        tgt = TargetSample(t, np.array([0.0, y - 0.01]), np.array([0.0, -0.03]), np.zeros(2),
+                           np.zeros(1))  # fmt: skip
+        c.step(obs_at(t, pos=(0.0, y)), tgt)
+    np.testing.assert_array_equal(c._trigger_pos, [0.0, 0.09])  # noqa: SLF001
+    np.testing.assert_array_equal(c._trigger_target[0], [0.0, 0.08])  # noqa: SLF001
+    np.testing.assert_array_equal(c._trigger_target[1], [0.0, -0.03])  # noqa: SLF001
+
+
+def test_a_measurement_without_a_target_keeps_the_lead(pattern) -> None:
+    """``_record`` keeps z; the lead (target − z across the motion) changes only when the
+    target of the measurement is known."""
+    c = make()
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    contact = c.contact_map.contacts[0]
+    assert c.report()["contacts"][0]["measured"] == []
+    c._record(0, np.array([0.0, 0.08]), (np.array([0.01, 0.07]), np.array([0.0, -0.03])))  # noqa: SLF001
+    np.testing.assert_allclose(contact.lead, [0.01, 0.0], atol=1e-15)  # along the motion: out
+    c._record(0, np.array([0.0, 0.079]), None)  # noqa: SLF001
+    np.testing.assert_allclose(contact.lead, [0.01, 0.0], atol=1e-15)
+    assert c.report()["contacts"][0]["measured"] == [[0.0, 0.08], [0.0, 0.079]]
+
+
+def test_an_impactless_event_goes_to_the_contact_whose_window_is_open(pattern) -> None:
+    """Two impact-less contacts with wide beliefs: a mode change measured nearer the first
+    (1 cm from it, 3 cm from the second) while only the second's window is open
+    updates the second, the one the robot was anticipating (§3.3), not the nearest."""
+    told = [{"name": "a", "position": [0.0, 0.13], "kind": "impactless"},
+            {"name": "b", "position": [0.0, 0.09], "kind": "impactless"}]  # fmt: skip
+    c = make(init_std=0.03)
+    c.prepare(pattern, told, np.random.default_rng(0))
+    c._windows = [TransitionWindow(1, "impactless", 0.0, 0.5, 10.0)]  # noqa: SLF001
+    signals = {"mode_event": 0.0, "mode": 0.0}
+    c.base.signal = signals.__getitem__
+    c._trigger_pos = np.array([0.0, 0.12])  # noqa: SLF001
+    c._trigger_target = (np.array([0.0, 0.11]), np.array([0.0, -0.03]))  # noqa: SLF001
+    c._impactless_event(obs_at(1.0))  # noqa: SLF001 - mode 0 known
+    signals.update(mode_event=2.0, mode=1.0)
+    c._impactless_event(obs_at(1.1))  # noqa: SLF001 - mode 1 decided
+    a, b = c.contact_map.contacts
+    assert b.updated_this_trial and not a.updated_this_trial
+
+
+def test_report_lists_each_contact_before_and_after_the_trial(pattern) -> None:
+    """``report()``'s per-contact record: the belief now and before the trial (std = the
+    largest per-axis σ, region_m = sigma_scale × the largest semi-axis of P + R), the
+    measurements z, and a made collision's Eq. 9 speed and force."""
+    c = make()
+    c.prepare(pattern, CONTACT, np.random.default_rng(0))
+    contact = c.contact_map.contacts[0]
+    mean0 = contact.belief.mean.tolist()
+    std0 = float(np.sqrt(np.max(np.diag(contact.belief.cov))))
+    (rec,) = c.report()["contacts"]
+    assert rec == {
+        "name": "mid", "kind": "collision", "source": "config", "mean": mean0, "std": std0,
+        "region_m": pytest.approx(2.0 * np.sqrt(np.max(np.linalg.eigvalsh(
+            contact.belief.cov + contact.belief.R)))),
+        "prior_mean": mean0, "prior_std": std0, "approach_velocity": None,
+        "impact_force": None, "measured": [],
+    }  # fmt: skip
+    c.contact_map.observe([0.0, 0.079], "collision", v_used=0.04, f_measured=11.0)
+    c._record(0, np.array([0.0, 0.079]), None)  # noqa: SLF001
+    (rec,) = c.report()["contacts"]
+    assert (rec["prior_mean"], rec["prior_std"]) == (mean0, std0)
+    assert rec["mean"] != mean0 and rec["std"] < std0
+    assert (rec["approach_velocity"], rec["impact_force"]) == (0.04, 11.0)
+    assert rec["measured"] == [[0.0, 0.079]]
+    assert {"k_free", "k_max", "eps0", "r"} <= set(c.report())
