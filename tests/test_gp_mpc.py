@@ -3,6 +3,7 @@ stochastic propagation (Eq. 7-8) against Monte Carlo."""
 
 from __future__ import annotations
 
+import json
 from functools import partial
 
 import numpy as np
@@ -359,3 +360,36 @@ def test_the_reference_force_ramps_at_its_rate_limit_over_the_horizon(gp2: GPFor
     ]
     np.testing.assert_allclose(np.array(f_ref)[:, 0], [15.0, 5.0, -5.0, -15.0, -15.0, -15.0],
                                atol=1e-3)  # fmt: skip
+
+
+def _small_gp_mpc() -> GPMPC:
+    return GPMPC(mass_kg=10.0, demo_modes=[0], max_points=30,
+                 gp={"mean": "hinge", "n_restarts": 0},
+                 mpc={"horizon": 4, "ts": 0.01}, mpc_period_s=0.01)  # fmt: skip
+
+
+def test_learned_state_refits_the_same_gps_and_plans_the_same() -> None:
+    """The demonstrations travel as JSON; a fresh controller refits its GPs from them at its
+    next reset and then plans what the demonstrated one plans. A state with the wrong number
+    of modes, or without its data, is refused on one line naming the key."""
+    ctrl = _small_gp_mpc()
+    target = _demonstrate(ctrl)
+    state = json.loads(json.dumps(ctrl.state_dict(), allow_nan=False))
+    assert state["trials_done"] == 1 and len(state["data"]) == 1 and len(state["data"][0]) > 0
+    fresh = _small_gp_mpc()
+    fresh.load_state_dict(state)
+    assert fresh.state_dict() == state
+    fresh.reset(2, 0.001)
+    for c in (ctrl, fresh):
+        for k in range(12):
+            c.step(_obs(k * 0.001, np.array([-0.02, 0.0]), np.zeros(2)), target)
+    assert fresh.report()["mpc_solves"] == ctrl.report()["mpc_solves"] > 0
+    np.testing.assert_allclose(fresh.f_ref, ctrl.f_ref, atol=1e-9)
+    np.testing.assert_allclose(fresh.damping, ctrl.damping, atol=1e-9)
+    line = partial(refusal, ConfigError)
+    assert line(_small_gp_mpc().load_state_dict, {**state, "data": []}) == (
+        "controller.learned_state: has 0 modes, expected 1"
+    )
+    assert line(_small_gp_mpc().load_state_dict, {"trials_done": 1}) == (
+        "controller.learned_state: malformed: 'data'"
+    )
