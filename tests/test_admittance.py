@@ -87,3 +87,21 @@ def test_mean_step_is_eq7() -> None:
     mu = np.array([0.0, 0.1])
     np.testing.assert_allclose(mean_step(a, b, mu, np.array([3.0]), np.array([1.0])),
                                a @ mu + b @ np.array([2.0]))  # fmt: skip
+
+
+def test_a_reference_per_step_is_applied_at_its_step() -> None:
+    """``f_ref`` as a list gives f^r_k at step k of Eq. 7 (the held form repeats one)."""
+
+    def free(_x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # no contact force
+        return np.zeros(2), np.ones(2)
+
+    refs = [np.array([2.0, 0.0]), np.array([0.0, -3.0]), np.array([1.0, 1.0])]
+    args = ([4.0, 4.0], [80.0, 80.0], TS, np.zeros(4), np.zeros((4, 4)))
+    mus, _ = rollout(*args, refs, free, 3)
+    a, b = system_matrices([4.0, 4.0], [80.0, 80.0], TS)
+    mu = np.zeros(4)
+    for k, fr in enumerate(refs):
+        mu = a @ mu + b @ (np.zeros(2) - fr)  # Eq. 7 with μ^f = 0
+        np.testing.assert_allclose(mus[k + 1], mu, rtol=1e-12, atol=1e-15)
+    held, _ = rollout(*args, refs[0], free, 3)
+    assert not np.allclose(held[-1], mus[-1])

@@ -4,6 +4,7 @@ stochastic propagation (Eq. 7-8) against Monte Carlo."""
 from __future__ import annotations
 
 import json
+import math
 from functools import partial
 
 import numpy as np
@@ -393,3 +394,91 @@ def test_learned_state_refits_the_same_gps_and_plans_the_same() -> None:
     assert line(_small_gp_mpc().load_state_dict, {"trials_done": 1}) == (
         "controller.learned_state: malformed: 'data'"
     )
+
+
+def test_the_controller_updates_its_belief_from_the_force_measured_at_the_pose() -> None:
+    """Two demonstrations, one per mode (mode 1: the same wall and a human pushing +8 N
+    along y). Executing, each solve first applies Eq. 12 to the force measured at the
+    measured pose, with each mode's GP mean and variance there plus its noise: the belief is
+    that Bayes update of the previous one, and a +8 N push moves it to mode 1."""
+    from ccm.control.mpc.terms import belief_update
+
+    ctrl = GPMPC(mass_kg=10.0, demo_modes=[0, 1], max_points=30,
+                 gp={"mean": "hinge", "n_restarts": 0}, mpc={"horizon": 4, "ts": 0.01},
+                 mpc_period_s=0.01, min_belief=0.01)  # fmt: skip
+    X, F = _contact_data(2, np.random.default_rng(1))
+    ctrl.reset(2, 0.001)
+    target = TargetSample(0.0, np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(1))
+    for push in (0.0, 8.0):
+        for i, (x, f) in enumerate(zip(X, F + [0.0, push], strict=True)):
+            for _ in range(ctrl.record_every):
+                ctrl.step(_obs(i * 0.01, x, f), target)
+        ctrl.end_trial()
+        ctrl.reset(2, 0.001)
+    pose, force = np.array([-0.03, 0.01]), np.array([0.1, 8.2])
+    expected = np.full(2, 0.5)
+    for k in range(25):
+        before = ctrl.solves
+        ctrl.step(_obs(k * 0.001, pose, force), target)
+        if ctrl.solves > before:
+            preds = [g.predict(pose[None, :]) for g in ctrl.models]
+            noise = np.array([[gm.noise_var_ for gm in g.models] for g in ctrl.models])
+            expected = belief_update(expected, force, np.array([p[0][0] for p in preds]),
+                                     np.array([p[1][0] for p in preds]) + noise,
+                                     min_belief=0.01)  # fmt: skip
+    assert ctrl.solves >= 2
+    np.testing.assert_allclose(ctrl.belief, expected, rtol=1e-12)
+    assert ctrl.belief[1] > 0.95
+    sig = ctrl.signals()
+    assert (sig["belief_0"], sig["belief_1"]) == tuple(ctrl.belief.tolist())
+    assert sig["demonstration"] == 0.0 and sig["mpc_infeasible"] == 0.0
+
+
+def test_each_mode_is_fit_on_max_points_spread_over_its_demonstration() -> None:
+    """Seed B §3.1.1's GP per mode, fit on ``max_points`` rows spread evenly over the
+    demonstration, its first and last row included: the same predictions as a GP fit by hand
+    on those rows."""
+    from ccm.learn.gp.gp_force import GPForceModels
+
+    ctrl = GPMPC(mass_kg=10.0, demo_modes=[0], max_points=10,
+                 gp={"mean": "hinge", "n_restarts": 0}, mpc={"horizon": 4, "ts": 0.01},
+                 mpc_period_s=0.01)  # fmt: skip
+    _demonstrate(ctrl)
+    X, F = _contact_data(2, np.random.default_rng(1))  # what _demonstrate fed, 30 rows
+    (rows,) = ctrl.state_dict()["data"]
+    np.testing.assert_array_equal(np.asarray(rows), np.hstack([X, F]))
+    idx = np.round(np.linspace(0, 29, 10)).astype(int)
+    assert idx[0] == 0 and idx[-1] == 29
+    by_hand = GPForceModels(2, mean="hinge", n_restarts=0).fit(X[idx], F[idx])
+    probe = np.array([[-0.05, 0.0], [0.0, 0.01], [4e-4, -0.02]])
+    for got, want in zip(ctrl.models[0].predict(probe), by_hand.predict(probe), strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+
+
+def test_the_disturbance_and_arm_terms_are_on_exactly_when_their_weight_is() -> None:
+    """Eq. 16-17 enter with any positive weight (here 0.5) and not at 0; Eq. 15's arm is
+    built when its weight is positive or its block is given, not for weight 0 alone."""
+    two_pi_15 = 2 * math.pi * 15
+    half = MPCSettings.parse({"weights": {"disturbance": 0.5}}, "mpc")
+    assert half.disturbance == (1.0, pytest.approx(two_pi_15))
+    assert MPCSettings.parse({"weights": {"disturbance": 0.0}}, "mpc").disturbance is None
+    assert MPCSettings.parse({"weights": {"joint_torque": 0.0}}, "mpc").joint_torque is None
+    arm = MPCSettings.parse({"weights": {"joint_torque": 0.0},
+                             "joint_torque": {"velocity": "predicted"}}, "mpc")  # fmt: skip
+    assert arm.joint_torque is not None and arm.joint_torque.velocity == "predicted"
+    assert MPCSettings.parse({"weights": {"joint_torque": 0.2}}, "mpc").joint_torque.l2 == 0.35
+
+
+def test_impedance_steps_stay_inside_their_rate_limits_and_bounds(gp2: GPForceModels) -> None:
+    """Eq. 13's bounds on one solve's variables: |f^r| ≤ f_ref_max; ΔM within ±5 kg and
+    ΔD within ±500 N s/m (the rate limits), cut so that M ∈ [5, 60] kg and D ∈ [500, 5000]
+    N s/m afterwards; near each end the bound is the distance left to it."""
+    prob = _problem(gp2)
+    n, h = 2, prob.horizon
+    lo, hi = prob.bounds(np.array([58.0, 6.0]), np.array([4800.0, 700.0]))
+    np.testing.assert_array_equal(lo[: n * h], -30.0)
+    np.testing.assert_array_equal(hi[: n * h], 30.0)
+    s = n * h
+    np.testing.assert_array_equal(lo[s : s + 4], [-5.0, -1.0, -500.0, -200.0])
+    np.testing.assert_array_equal(hi[s : s + 4], [2.0, 5.0, 200.0, 500.0])
+    assert np.all(np.isinf(lo[s + 4 :])) and np.all(np.isinf(hi[s + 4 :]))  # the states

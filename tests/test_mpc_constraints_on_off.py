@@ -15,11 +15,13 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-from ccm.control.mpc.problem import MPCSolution
+from ccm.control.mpc.problem import GPMPCProblem, MPCSolution
 from ccm.control.mpc.settings import Weights
 from ccm.control.mpc.terms import joint_torque_cost
 from tests.mpc_cases import (
     HAND,
+    TS,
+    H,
     _solve,
 )
 from tests.mpc_cases import (
@@ -177,3 +179,41 @@ def test_well_damped_with_the_gp_stiffness_sets_the_damping() -> None:
     assert off.damping[0] < need(off) - 500.0
     assert on.damping[0] > off.damping[0] + 500.0
     # the constraint flipped (D ≤ bound) would leave D near 500; fails.
+
+
+def test_chance_constraint_is_inactive_where_both_sides_hold() -> None:
+    """Eq. 18 bounds |μ^f| from both sides: f̄ − μ^f − q √Σ^f ≥ 0 and f̄ + μ^f − q √Σ^f ≥ 0.
+    3 cm in front of the wall, at rest, the GP's free-space force (|μ^f| ≈ 0.16 N) meets a
+    bound of f̄ = 0.5 N with q = 0 on both sides: the plan is the unconstrained one. (A
+    bound shifted by a newton on either side would make it infeasible there.)"""
+    wall = wall_gp()
+    xi0 = [-0.03, 0.0]
+    kw = {"f_ref_target": 0.0, "f_ref_rate_max": 10.0}
+    off = _solve([wall], WALL_W, xi0, **kw)
+    chance = {"f_max": 0.5, "epsilon": 0.5, "quantile": "normal"}
+    on = _solve([wall], WALL_W, xi0, chance=chance, **kw)
+    mu_end = wall.predict(on.predicted[0, -1:, :1])[0][0, 0]
+    assert abs(mu_end) < 0.5
+    np.testing.assert_allclose(on.predicted, off.predicted, atol=1e-6)
+    np.testing.assert_allclose(on.f_ref, off.f_ref, atol=1e-6)
+
+
+def test_a_failed_solve_leaves_no_warm_start() -> None:
+    """Eq. 18 with f̄ = 0.6 N below the margin q √Σ^f + |μ^f| of free space: a solve from
+    3 cm before the wall is infeasible; the next one (0.5 mm in the wall, feasible) starts
+    cold, as a fresh problem's first solve does, not from the failed iterate."""
+    wall = wall_gp()
+    chance = {"f_max": 0.6, "epsilon": 0.05, "quantile": "normal"}
+
+    def problem() -> GPMPCProblem:
+        return GPMPCProblem([wall.casadi_functions()], 1, weights=WALL_W, horizon=H, ts=TS,
+                            f_ref_max=30.0, chance=chance, **WALL_KW)  # fmt: skip
+
+    imp = ([1.0], [5.0], [500.0], [0.0])
+    prob = problem()
+    failed = prob.solve([-0.03, 0.0], *imp)
+    assert not failed.success
+    after, fresh = prob.solve([0.0005, 0.0], *imp), problem().solve([0.0005, 0.0], *imp)
+    assert after.success and fresh.success
+    assert after.iterations == fresh.iterations
+    np.testing.assert_array_equal(after.predicted, fresh.predicted)
