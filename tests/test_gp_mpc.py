@@ -17,6 +17,7 @@ from ccm.control.mpc.settings import MPCSettings, Weights
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
 from ccm.learn.gp.gp_force import GPForceModels
+from tests.mpc_cases import wall
 from tests.refusals import refusal
 
 K_WALL = 45000.0  # N/m, seed B's medium environment
@@ -319,7 +320,7 @@ def test_controller_refusals_are_whole_lines() -> None:
         "controller.demo_modes: needs at least one demonstration for the GPs"
     )
     assert line(GPMPC(mpc=False, init_mass=[1.0, 2.0, 3.0]).reset, 2, 0.001) == (
-        "controller.init_mass: needs 1 or 2 values"
+        "controller.init_mass: needs 1 or 2 values, got [1.0, 2.0, 3.0]"
     )
     key = "controller.mpc"
     assert line(MPCSettings.parse, {"chance": 3}, key) == (
@@ -482,3 +483,58 @@ def test_impedance_steps_stay_inside_their_rate_limits_and_bounds(gp2: GPForceMo
     np.testing.assert_array_equal(lo[s : s + 4], [-5.0, -1.0, -500.0, -200.0])
     np.testing.assert_array_equal(hi[s : s + 4], [2.0, 5.0, 200.0, 500.0])
     assert np.all(np.isinf(lo[s + 4 :])) and np.all(np.isinf(hi[s + 4 :]))  # the states
+
+
+def _wall_functions() -> list:
+    return [wall().casadi_functions()]
+
+
+REFUSALS = [
+    (lambda: GPMPC(mass_kg=-1.0), "controller.mass_kg: must be > 0, got -1.0"),
+    (lambda: GPMPC(inner_kp=0.0), "controller.inner_kp: must be > 0, got 0.0"),
+    (lambda: GPMPC(inner_kd=-1.0), "controller.inner_kd: must be >= 0, got -1.0"),
+    (lambda: GPMPC(rot_stiffness=-1.0), "controller.rot_stiffness: must be >= 0, got -1.0"),
+    (lambda: GPMPC(rot_damping=-2.0), "controller.rot_damping: must be >= 0, got -2.0"),
+    (lambda: GPMPC(mpc_period_s=0.0), "controller.mpc_period_s: must be > 0, got 0.0"),
+    (lambda: GPMPC(record_every=0), "controller.record_every: must be > 0, got 0"),
+    (lambda: GPMPC(max_points=0), "controller.max_points: must be > 0, got 0"),
+    (lambda: GPMPC(min_belief=-0.1), "controller.min_belief: must be >= 0, got -0.1"),
+    (lambda: GPMPC(force_delay_s=-0.01), "controller.force_delay_s: must be >= 0, got -0.01"),
+    (lambda: GPMPC(demo_modes=[0, 2]),
+     "controller.demo_modes: labels must be 0..N-1, each used; got [0, 2]"),
+    (lambda: GPMPC(mpc={"horizon": 0}), "controller.mpc.horizon: must be an integer >= 1, got 0"),
+    (lambda: GPMPC(mpc=False, init_damping=[-5.0, 1.0]).reset(2, 0.001),
+     "controller.init_damping: must be >= 0, got [-5.0, 1.0]"),
+    (lambda: GPMPC(mpc=False, init_mass=[0.0, 1.0]).reset(2, 0.001),
+     "controller.init_mass: must be > 0, got [0.0, 1.0]"),
+    (lambda: GPMPC(demo_mass=-3.0).reset(2, 0.001),
+     "controller.demo_mass: must be > 0, got [-3.0, -3.0]"),
+    (lambda: system_matrices([1.0, 2.0], [1.0], 0.01),
+     "admittance.damping: needs the shape of mass (2,)"),
+    (lambda: system_matrices([-1.0], [1.0], 0.01),
+     "admittance.mass: must be finite and > 0, got [-1.0]"),
+    (lambda: system_matrices([1.0], [-1.0], 0.01),
+     "admittance.damping: must be finite and >= 0, got [-1.0]"),
+    (lambda: GPMPCProblem([], 1), "controller.mpc.modes: needs at least one mode's GP models"),
+    (lambda: GPMPCProblem(_wall_functions(), 0),
+     "controller.mpc.n: must be an integer >= 1, got 0"),
+    (lambda: GPMPCProblem(_wall_functions(), 1, disturbance={"alpha": "demonstrations"},
+                          weights={"disturbance": 1.0}),
+     "controller.mpc.disturbance.alpha: demonstrations: estimate it before the problem"),
+    (lambda: GPMPCProblem(_wall_functions(), 1, f_ref_target=[1.0, 2.0]),
+     "controller.mpc.f_ref_target: needs 1 value, got [1.0, 2.0]"),
+    (lambda: MPCSettings.parse({"joint_torque": {"shoulder": [1, 2]}}, "mpc"),
+     "mpc.joint_torque.shoulder: needs 1 or 3 values, got [1, 2]"),
+    (lambda: MPCSettings.parse({"joint_torque": {"l1": 0}}, "mpc"),
+     "mpc.joint_torque.l1: must be > 0, got 0"),
+    (lambda: MPCSettings.parse({"joint_torque": {"l2": -1}}, "mpc"),
+     "mpc.joint_torque.l2: must be > 0, got -1"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("build", "line"), REFUSALS, ids=[r[1].split(":")[0] for r in REFUSALS])
+def test_each_bad_setting_is_refused_on_one_line_naming_its_key(build, line: str) -> None:
+    """The whole line: the key a user typed and the rule it broke (a wrong length was a
+    numpy broadcast traceback for ``f_ref_target`` and the arm's ``shoulder``; the demo
+    impedance's refusal named ``init_*``; a negative damping was said to need > 0)."""
+    assert refusal(ConfigError, build) == line

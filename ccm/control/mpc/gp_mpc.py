@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from ccm.control.base import Controller
+from ccm.control.mpc.settings import vector
 from ccm.core.errors import ConfigError, check_nonneg, check_positive
 from ccm.core.types import Command, Observation, TargetSample
 
@@ -162,27 +163,22 @@ class GPMPC(Controller):
         return self.mpc_cfg is not None and self._trials_done < len(self.demo_modes)
 
     def _vec(self, name: str) -> np.ndarray:
-        value = self._raw[name]
-        try:
-            arr = np.broadcast_to(np.asarray(value, dtype=float), (self.dim,)).copy()
-        except ValueError:
-            raise ConfigError(f"{self.key}.{name}", f"needs 1 or {self.dim} values") from None
-        if not np.all(np.isfinite(arr)):
-            raise ConfigError(f"{self.key}.{name}", f"must be finite, got {value!r}")
-        return arr
+        return vector(f"{self.key}.{name}", self._raw[name], self.dim)
 
     def reset(self, dim: int, control_dt: float) -> None:
         super().reset(dim, control_dt)
         if self._needs_fit:
             self._needs_fit = False
             self._fit()
-        demo = self.demonstrating
-        self.mass = self._vec("demo_mass" if demo else "init_mass")
-        self.damping = self._vec("demo_damping" if demo else "init_damping")
-        self.f_ref = self._vec("demo_f_ref" if demo else "init_f_ref")
-        for name, v, lo in (("mass", self.mass, 0.0), ("damping", self.damping, -1e-300)):
-            if np.any(v <= lo):
-                raise ConfigError(f"{self.key}.init_{name}", f"must be > 0, got {v.tolist()}")
+        names = ("demo_mass", "demo_damping", "demo_f_ref") if self.demonstrating else (
+            "init_mass", "init_damping", "init_f_ref")  # fmt: skip
+        self.mass, self.damping, self.f_ref = (self._vec(name) for name in names)
+        if np.any(self.mass <= 0.0):
+            raise ConfigError(f"{self.key}.{names[0]}", f"must be > 0, got {self.mass.tolist()}")
+        if np.any(self.damping < 0.0):
+            raise ConfigError(
+                f"{self.key}.{names[1]}", f"must be >= 0, got {self.damping.tolist()}"
+            )
         self.belief = np.full(self.n_modes, 1.0 / self.n_modes)
         self.sigma_f = np.full(dim, np.nan)  # Σ^f at ξ_{t+H} of the last solve (none yet)
         self._x_ref: np.ndarray | None = None

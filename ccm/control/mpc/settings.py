@@ -150,8 +150,12 @@ def only(key: str, block: Any, allowed: Sequence[str]) -> None:
 
 
 def vector(key: str, value: Any, n: int) -> np.ndarray:
-    """``value`` broadcast to (n,), finite."""
-    arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+    """``value`` (one number or ``n``) broadcast to (n,), finite."""
+    try:
+        arr = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+    except (TypeError, ValueError):
+        count = "1 value" if n == 1 else f"1 or {n} values"
+        raise ConfigError(key, f"needs {count}, got {value!r}") from None
     if not np.all(np.isfinite(arr)):
         raise ConfigError(key, f"must be finite, got {value!r}")
     return arr
