@@ -4,6 +4,7 @@ recorder's column assembly."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from ccm.core import vector
 
@@ -52,18 +53,40 @@ def test_recorder_columns_keep_the_steps_values() -> None:
     np.testing.assert_array_equal(single.arrays()["a"], [7.0])
 
 
-def test_flat_joins_vectors_as_concatenate_does() -> None:
-    """The recorder's byte join gives np.concatenate's numbers, writable, and falls back
-    for strided views and other dtypes."""
-    from ccm.core.records import _flat
+def test_the_recorder_copies_each_step() -> None:
+    """Issue #40's rule, copy what you log: a simulator or controller that updates its arrays
+    in place after a step leaves the logged row as it was. Strided views, integer and float32
+    vectors are logged as their float64 values; a vector of the wrong length is refused on
+    one line naming its column."""
+    from ccm.core.records import TrialRecorder
+    from ccm.core.types import Command, Observation, StepInfo, TargetSample
 
-    rng = np.random.default_rng(3)
-    plain = [rng.standard_normal(3) for _ in range(50)]
-    joined = _flat(plain)
-    np.testing.assert_array_equal(joined, np.concatenate(plain))
-    assert joined.dtype == np.float64 and joined.flags.writeable
-    strided = [np.arange(6.0)[::2], np.arange(6.0).reshape(2, 3)[:, 1], np.ones(2)]
-    np.testing.assert_array_equal(_flat(strided), [0.0, 2.0, 4.0, 1.0, 4.0, 1.0, 1.0])
-    mixed = [np.array([1, 2]), np.array([0.5, np.nan], dtype=np.float32)]
-    np.testing.assert_array_equal(_flat(mixed), [1.0, 2.0, 0.5, np.nan])
-    assert _flat(mixed).dtype == np.float64
+    pos, force, cmd = np.array([1.0, 2.0]), np.array([0.5, -0.5]), np.array([3.0, 4.0])
+    obs = Observation(0.0, pos, np.zeros(1), np.zeros(2), np.zeros(1), force, np.zeros(1))
+    target = TargetSample(0.0, np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(1))
+    info = StepInfo(force, np.zeros(1), force, 1, {})
+    signals = {"k": 100.0}
+    rec = TrialRecorder(2, ["k"], [])
+    rec.record(obs, target, Command(cmd, np.zeros(1)), info, signals)
+    pos += 1.0  # the next step, written in place into the same arrays
+    force *= 2.0
+    cmd[:] = [-1.0, -2.0]
+    signals["k"] = 200.0
+    rec.record(obs, target, Command(cmd, np.zeros(1)), info, signals)
+    cols = rec.arrays()
+    np.testing.assert_array_equal(cols["pos_x"], [1.0, 2.0])
+    np.testing.assert_array_equal(cols["force_y"], [-0.5, -1.0])
+    np.testing.assert_array_equal(cols["true_force_x"], [0.5, 1.0])
+    np.testing.assert_array_equal(cols["cmd_force_y"], [4.0, -2.0])
+    np.testing.assert_array_equal(cols["k"], [100.0, 200.0])
+    odd = TrialRecorder(2, [], [])
+    strided = np.arange(6.0)[::3]  # [0, 3]
+    ints, f32 = np.array([1, 2]), np.array([0.5, 0.25], dtype=np.float32)
+    odd_obs = Observation(0.0, strided, np.zeros(1), ints, np.zeros(1), f32, np.zeros(1))
+    odd.record(odd_obs, target, Command(cmd, np.zeros(1)), info, {})
+    cols = odd.arrays()
+    assert [cols[k][0] for k in ("pos_y", "vel_y", "force_x")] == [3.0, 2.0, 0.5]
+    short = Observation(0.0, np.zeros(3), np.zeros(1), np.zeros(2), np.zeros(1), force,
+                        np.zeros(1))  # fmt: skip
+    with pytest.raises(ValueError, match="^step 1: pos has 3 values, the log expects 2$"):
+        odd.record(short, target, Command(cmd, np.zeros(1)), info, {})

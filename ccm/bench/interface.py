@@ -4,9 +4,9 @@ Every control step of ccm's loop (:func:`ccm.experiment.trial.run_trial`) passes
 across its parts: the pattern gives a :class:`~ccm.core.types.TargetSample`, the controller a
 :class:`~ccm.core.types.Command`, the simulator an :class:`~ccm.core.types.Observation` and a
 :class:`~ccm.core.types.StepInfo` (with its truth extras), and the
-:class:`~ccm.core.records.TrialRecorder` keeps all four with the controller's signals, then
-assembles the columns. Each object carries fresh arrays, because the recorder keeps
-references to them.
+:class:`~ccm.core.records.TrialRecorder` copies the numbers of all four and the controller's
+signals, then assembles the columns. Each object still carries fresh arrays: the step types
+are made anew each step (issue #40 reuses them; the recorder already copies what it logs).
 
 :func:`interface_cost` builds and records exactly those objects for a row, with the row's
 dimensions, truth-extra keys and signal keys, and no arithmetic, sampling or physics. The

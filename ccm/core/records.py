@@ -7,7 +7,7 @@ import json
 import operator
 import os
 import tempfile
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -102,41 +102,47 @@ def axes_columns(log: Mapping[str, np.ndarray], prefix: str, dim: int) -> np.nda
 
 
 _F64 = np.dtype(np.float64)
-_DTYPE = operator.attrgetter("dtype")
+
+#: the per-step vectors of a row, in column order, and whether their axes are rotational
+_VECTORS = (
+    ("target_pos", False), ("target_vel", False), ("pos", False), ("vel", False),
+    ("force", False), ("torque", True), ("true_force", False), ("contact_force", False),
+    ("cmd_force", False), ("cmd_torque", True), ("force_dir", False),
+)  # fmt: skip
 
 
-def _flat(values: Sequence[np.ndarray]) -> np.ndarray:
-    """The per-step vectors end to end, as one float array. Contiguous float64 vectors (what
-    every backend and pattern gives) are joined as bytes, ~5x cheaper per vector than
-    ``np.concatenate``, whose per-array overhead dominates for 1-7 entries; anything else
-    goes through ``np.concatenate``. The same numbers either way."""
-    if set(map(_DTYPE, values)) == {_F64}:
+def _values(keys: Sequence[str]) -> Callable[[Mapping[str, float]], tuple]:
+    """A function of a per-step mapping: its values at ``keys`` as a tuple (NaN where a step
+    lacks a key), as a controller's signals and a simulator's truth extras give them."""
+    if not keys:
+        return lambda _d: ()
+    get = operator.itemgetter(*keys)
+    one = len(keys) == 1
+
+    def values(d: Mapping[str, float]) -> tuple:
         try:
-            return np.frombuffer(bytearray(b"".join(values)), dtype=_F64)
-        except (BufferError, TypeError):  # a strided view has no simple buffer
-            pass
-    return np.concatenate(values).astype(float, copy=False)
+            v = get(d)
+        except KeyError:
+            return tuple(d.get(k, np.nan) for k in keys)
+        return (v,) if one else v
+
+    return values
 
 
-def _columns(keys: Sequence[str], dicts: Sequence[Mapping[str, float]]) -> dict[str, np.ndarray]:
-    """Column ``k`` of a list of per-step dicts for each of ``keys`` (NaN where a step lacks
-    ``k``): one table through ``itemgetter`` when every step has every key, as a
-    controller's signals and a simulator's truth extras do."""
+def _table(keys: Sequence[str], rows: Sequence[tuple], n: int) -> dict[str, np.ndarray]:
+    """Column ``k`` of the per-step value tuples for each of ``keys``."""
     if not keys:
         return {}
-    try:
-        table = np.array(list(map(operator.itemgetter(*keys), dicts)), dtype=float)
-    except KeyError:
-        return {k: np.array([d.get(k, np.nan) for d in dicts], dtype=float) for k in keys}
-    table = table.reshape(len(dicts), len(keys))  # one key: itemgetter gives scalars
+    table = np.array(rows, dtype=float).reshape(n, len(keys))
     return {k: table[:, i] for i, k in enumerate(keys)}
 
 
 class TrialRecorder:
     """Per-step log of one trial: target, state, wrench, command, signals, truth.
 
-    ``record`` only keeps references (it runs every control step, so it must be cheap); the
-    table is assembled column-wise when first read. Columns (units in :mod:`ccm.core.types`):
+    ``record`` copies the step's numbers, so a simulator or a controller may update its
+    arrays in place: what is logged is what they held at that step. The table is built once,
+    when first read. Columns (units in :mod:`ccm.core.types`):
     ``t``, ``segment``, ``target_pos_*``, ``target_vel_*``, ``pos_*``, ``vel_*``, ``force_*``
     (measured), ``torque_*`` (measured), ``true_force_*``, ``contact_force_*``,
     ``cmd_force_*``, ``cmd_torque_*``, ``force_dir_*``, ``force_target_N``, ``n_contacts``,
@@ -148,7 +154,15 @@ class TrialRecorder:
         self.pattern_duration: float | None = None  # set by the runner: the (re-timed) P's end
         self.signal_keys = list(signal_keys)
         self.extra_keys = list(extra_keys)
-        self._rows: list[tuple[Observation, TargetSample, Command, StepInfo, Mapping]] = []
+        self._rot = ROT_AXES_2D if dim == 2 else ROT_AXES_3D
+        self._width = sum(len(self._rot) if is_rot else dim for _, is_rot in _VECTORS)
+        self._zeros = np.zeros(dim)
+        self._vectors = bytearray()  # every row's vectors, float64, end to end
+        self._scalars: list[tuple[Any, ...]] = []  # t, segment, F_d, contacts per step
+        self._signals: list[tuple] = []
+        self._extras: list[tuple] = []
+        self._signal_values = _values(self.signal_keys)
+        self._extra_values = _values(self.extra_keys)
         self._table: dict[str, np.ndarray] | None = None
 
     def record(
@@ -159,12 +173,46 @@ class TrialRecorder:
         info: StepInfo,
         signals: Mapping[str, float],
     ) -> None:
-        """Append one control step (the state ``obs`` at which ``cmd`` was computed)."""
-        self._rows.append((obs, target, cmd, info, signals))
+        """Append a copy of one control step (the state ``obs`` at which ``cmd`` was
+        computed)."""
+        d = target.force_dir
+        vectors = (
+            target.position, target.velocity, obs.position, obs.lin_vel, obs.force, obs.torque,
+            info.true_force, info.contact_force, cmd.force, cmd.torque,
+            self._zeros if d is None else d,
+        )  # fmt: skip
+        row = None
+        if all(getattr(v, "dtype", None) == _F64 for v in vectors):  # equal, not one object
+            try:
+                row = b"".join(vectors)  # contiguous float64: a copy of the bytes
+            except (BufferError, TypeError):  # a strided view has no simple buffer
+                row = None
+        if row is None or len(row) != 8 * self._width:
+            row = self._converted(vectors)
+        self._vectors += row
+        self._scalars.append(
+            (obs.t, target.segment, 0.0 if d is None else target.force_mag, info.n_contacts)
+        )
+        self._signals.append(self._signal_values(signals))
+        self._extras.append(self._extra_values(info.extra))
         self._table = None
 
+    def _converted(self, vectors: Sequence[Any]) -> bytes:
+        """The row's vectors as float64 bytes, whatever their type; a vector of the wrong
+        length is refused on one line naming its column."""
+        out = []
+        for (name, is_rot), v in zip(_VECTORS, vectors, strict=True):
+            arr = np.asarray(v, dtype=float).reshape(-1)
+            want = len(self._rot) if is_rot else self.dim
+            if arr.size != want:
+                raise ValueError(
+                    f"step {len(self)}: {name} has {arr.size} values, the log expects {want}"
+                )
+            out.append(arr.tobytes())
+        return b"".join(out)
+
     def __len__(self) -> int:
-        return len(self._rows)
+        return len(self._scalars)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The recorded columns as a dict of 1-D arrays, in column order."""
@@ -173,39 +221,19 @@ class TrialRecorder:
         return self._table
 
     def _assemble(self) -> dict[str, np.ndarray]:
-        rows = self._rows
-        ax = AXES[: self.dim]
-        rot = ROT_AXES_2D if self.dim == 2 else ROT_AXES_3D
-        zeros = np.zeros(self.dim)
-        out: dict[str, np.ndarray] = {
-            "t": np.array([r[0].t for r in rows], dtype=float),
-            "segment": np.array([r[1].segment for r in rows], dtype=float),
-        }
-
-        def put(prefix: str, names: Sequence[str], values: list[np.ndarray]) -> None:
-            flat = _flat(values) if values else np.zeros(0)
-            block = flat.reshape(len(rows), len(names))
-            for i, name in enumerate(names):
-                out[f"{prefix}_{name}"] = block[:, i]
-
-        put("target_pos", ax, [r[1].position for r in rows])
-        put("target_vel", ax, [r[1].velocity for r in rows])
-        put("pos", ax, [r[0].position for r in rows])
-        put("vel", ax, [r[0].lin_vel for r in rows])
-        put("force", ax, [r[0].force for r in rows])
-        put("torque", rot, [r[0].torque for r in rows])
-        put("true_force", ax, [r[3].true_force for r in rows])
-        put("contact_force", ax, [r[3].contact_force for r in rows])
-        put("cmd_force", ax, [r[2].force for r in rows])
-        put("cmd_torque", rot, [r[2].torque for r in rows])
-        put("force_dir", ax, [zeros if r[1].force_dir is None else r[1].force_dir for r in rows])
-        out["force_target_N"] = np.array(
-            [0.0 if r[1].force_dir is None else r[1].force_mag for r in rows], dtype=float
-        )
-        out["n_contacts"] = np.array([r[3].n_contacts for r in rows], dtype=float)
-        out.update(_columns(self.signal_keys, [r[4] for r in rows]))
-        extras = _columns(self.extra_keys, [r[3].extra for r in rows])
-        out.update((f"truth_{k}", v) for k, v in extras.items())
+        n = len(self)
+        scalars = np.array(self._scalars, dtype=float).reshape(n, 4)
+        out: dict[str, np.ndarray] = {"t": scalars[:, 0], "segment": scalars[:, 1]}
+        block = np.frombuffer(self._vectors, dtype=_F64).reshape(n, self._width).copy()
+        col = 0
+        for name, is_rot in _VECTORS:
+            for a in self._rot if is_rot else AXES[: self.dim]:
+                out[f"{name}_{a}"] = block[:, col]
+                col += 1
+        out["force_target_N"] = scalars[:, 2]
+        out["n_contacts"] = scalars[:, 3]
+        out.update(_table(self.signal_keys, self._signals, n))
+        out.update((f"truth_{k}", v) for k, v in _table(self.extra_keys, self._extras, n).items())
         return out
 
     @property

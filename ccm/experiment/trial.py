@@ -62,9 +62,9 @@ def run_trial(
     if expect is not None:
         expect(n_steps())
 
-    # The loop allocates many small acyclic objects that the recorder keeps; the cyclic
-    # garbage collector would rescan them ever more often, so it is paused for the trial and
-    # while the recorder turns them into columns (a third of that step's cost, issue #20).
+    # The loop allocates many small acyclic objects, and the recorder keeps a few tuples of
+    # numbers per step; the cyclic garbage collector would rescan them ever more often, so
+    # it is paused for the trial and while the recorder builds its columns (issue #20).
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
