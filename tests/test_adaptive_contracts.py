@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -25,8 +26,7 @@ from tests.test_controller_state import build, feed
 Composer = Callable[[Sequence[str]], DictConfig]
 
 
-def _config_refusal(fn: Callable[..., Any], *args: Any, **kw: Any) -> str:
-    return refusal(ConfigError, fn, *args, **kw)
+_config_refusal = partial(refusal, ConfigError)
 
 
 # ---------------------------------------------------------------- Algorithm 1's learned state

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 from functools import partial
+from typing import Any
 
 import numpy as np
 import pytest
@@ -364,10 +365,12 @@ def test_the_reference_force_ramps_at_its_rate_limit_over_the_horizon(gp2: GPFor
                                atol=1e-3)  # fmt: skip
 
 
-def _small_gp_mpc() -> GPMPC:
-    return GPMPC(mass_kg=10.0, demo_modes=[0], max_points=30,
-                 gp={"mean": "hinge", "n_restarts": 0},
-                 mpc={"horizon": 4, "ts": 0.01}, mpc_period_s=0.01)  # fmt: skip
+def _small_gp_mpc(**kw: Any) -> GPMPC:
+    """A GP-MPC with a short horizon and a quick GP fit; ``kw`` overrides its settings."""
+    settings = {"mass_kg": 10.0, "demo_modes": [0], "max_points": 30,
+                "gp": {"mean": "hinge", "n_restarts": 0}, "mpc": {"horizon": 4, "ts": 0.01},
+                "mpc_period_s": 0.01}  # fmt: skip
+    return GPMPC(**{**settings, **kw})
 
 
 def test_learned_state_refits_the_same_gps_and_plans_the_same() -> None:
@@ -404,9 +407,7 @@ def test_the_controller_updates_its_belief_from_the_force_measured_at_the_pose()
     that Bayes update of the previous one, and a +8 N push moves it to mode 1."""
     from ccm.control.mpc.terms import belief_update
 
-    ctrl = GPMPC(mass_kg=10.0, demo_modes=[0, 1], max_points=30,
-                 gp={"mean": "hinge", "n_restarts": 0}, mpc={"horizon": 4, "ts": 0.01},
-                 mpc_period_s=0.01, min_belief=0.01)  # fmt: skip
+    ctrl = _small_gp_mpc(demo_modes=[0, 1], min_belief=0.01)
     X, F = _contact_data(2, np.random.default_rng(1))
     ctrl.reset(2, 0.001)
     target = TargetSample(0.0, np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(1))
@@ -441,9 +442,7 @@ def test_each_mode_is_fit_on_max_points_spread_over_its_demonstration() -> None:
     on those rows."""
     from ccm.learn.gp.gp_force import GPForceModels
 
-    ctrl = GPMPC(mass_kg=10.0, demo_modes=[0], max_points=10,
-                 gp={"mean": "hinge", "n_restarts": 0}, mpc={"horizon": 4, "ts": 0.01},
-                 mpc_period_s=0.01)  # fmt: skip
+    ctrl = _small_gp_mpc(max_points=10)
     _demonstrate(ctrl)
     X, F = _contact_data(2, np.random.default_rng(1))  # what _demonstrate fed, 30 rows
     (rows,) = ctrl.state_dict()["data"]

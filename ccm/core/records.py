@@ -102,6 +102,7 @@ def axes_columns(log: Mapping[str, np.ndarray], prefix: str, dim: int) -> np.nda
 
 
 _F64 = np.dtype(np.float64)
+_ONLY_F64 = {_F64}
 
 #: the per-step vectors of a row, in column order, and whether their axes are rotational
 _VECTORS = (
@@ -181,12 +182,10 @@ class TrialRecorder:
             info.true_force, info.contact_force, cmd.force, cmd.torque,
             self._zeros if d is None else d,
         )  # fmt: skip
-        row = None
-        if all(getattr(v, "dtype", None) == _F64 for v in vectors):  # equal, not one object
-            try:
-                row = b"".join(vectors)  # contiguous float64: a copy of the bytes
-            except (BufferError, TypeError):  # a strided view has no simple buffer
-                row = None
+        try:  # contiguous float64 (dtypes equal, not one object): a copy of the bytes
+            row = b"".join(vectors) if {v.dtype for v in vectors} == _ONLY_F64 else None
+        except (AttributeError, BufferError, TypeError):  # a list; a strided view
+            row = None
         if row is None or len(row) != 8 * self._width:
             row = self._converted(vectors)
         self._vectors += row

@@ -170,8 +170,8 @@ class GPMPC(Controller):
         if self._needs_fit:
             self._needs_fit = False
             self._fit()
-        names = ("demo_mass", "demo_damping", "demo_f_ref") if self.demonstrating else (
-            "init_mass", "init_damping", "init_f_ref")  # fmt: skip
+        stage = "demo" if self.demonstrating else "init"
+        names = [f"{stage}_{name}" for name in ("mass", "damping", "f_ref")]
         self.mass, self.damping, self.f_ref = (self._vec(name) for name in names)
         if np.any(self.mass <= 0.0):
             raise ConfigError(f"{self.key}.{names[0]}", f"must be > 0, got {self.mass.tolist()}")
