@@ -49,6 +49,8 @@ commands:
   paper [--quick]       every paper experiment over its seeds (2 sweeps at a time), then
                         report (make reproduce-paper); --out DIR, --lanes N, names to select,
                         --force to start over (earlier records moved aside, not resumed)
+  plots DIR…            draw a finished run's figures again from its files (a sweep
+                        directory: each of its runs, --jobs N at a time)
   animate RUN_DIR       a clip of one recorded trial (MP4 with ffmpeg, else GIF), replayed
                         from its time series: --condition C (default the first), --trial N
                         (default the last recorded), --out FILE, --fps F
@@ -60,7 +62,8 @@ commands:
   --version             print the version
 
 Outputs go to ./outputs/<experiment>/<timestamp>/ (sweeps: ./multirun/…), relative to the
-current directory: .hydra/, timeseries/, figures/*.png, run_info.json, summary.json (last).
+current directory: .hydra/, timeseries/, plot_inputs.json, run_info.json, summary.json,
+then figures/*.png (drawn after the numbers are written).
 Set HYDRA_FULL_ERROR=1 (or pass --verbose to `run`) for full tracebacks.
 """
 
@@ -311,20 +314,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         return cmd_list(argv[1:])
     if argv[0] == "run":
         return cmd_run(argv[1:])
-    if argv[0] in ("report", "paper", "animate", "demo"):
+    if argv[0] in ("report", "paper", "plots", "animate", "demo"):
         from ccm.analyses.demo import main as demo
         from ccm.core.errors import ConfigError
         from ccm.plots.animate import main as animate
+        from ccm.plots.redraw import main as plots
         from ccm.reporting.paper import main as paper
         from ccm.reporting.report import main as report
 
         try:
-            commands = {"report": report, "paper": paper, "animate": animate, "demo": demo}
+            commands = {
+                "report": report,
+                "paper": paper,
+                "plots": plots,
+                "animate": animate,
+                "demo": demo,
+            }
             return commands[argv[0]](argv[1:])
         except ConfigError as exc:
             return _fail(str(exc), EXIT_CONFIG)
     return _fail(
-        f"unknown command {argv[0]!r}; allowed: run, list, report, paper, animate, demo, --help",
+        f"unknown command {argv[0]!r}; allowed: run, list, report, paper, plots, animate, demo, "
+        "--help",
         EXIT_CONFIG,
     )
 

@@ -14,7 +14,7 @@ from ccm.core.errors import ConfigError
 from ccm.core.filters import derivatives
 from ccm.metrics.contacts import contact_metrics, impact_jerk
 from ccm.metrics.trial import EXTRA_METRICS, compute_extra_metrics
-from ccm.plots.run import write_figures
+from ccm.plots.run import figure_inputs, write_figures
 from ccm.tasks.task import load_task
 
 DT = 0.001
@@ -62,6 +62,9 @@ def drop_log(n: int = 1000, controller: bool = False) -> dict[str, np.ndarray]:
         event[[302, 700]] = [1.0, 2.0]
         log.update(transition_alpha=alpha, collision_event=event, pattern_rate=np.ones(n))
     return log
+
+
+LOWPASS = {"lowpass_hz": 30.0}
 
 
 def test_onset_impact_force_and_acceleration() -> None:
@@ -229,7 +232,7 @@ def test_contact_figures_written(tmp_path: Path) -> None:
         for c in ("full", "baseline")
         for k in (1, 2)
     ]
-    written = write_figures(tmp_path, comps, logs, {"lowpass_hz": 30.0}, trials)
+    written = write_figures(tmp_path, figure_inputs(comps, LOWPASS, {}), logs, trials)
     names = {p.name for p in written}
     assert {"contact_transitions.png", "contact_transitions_last.png"} <= names
     assert "patch_transitions.png" in names  # Figs 19-20: the task has an impact-less contact
@@ -239,7 +242,7 @@ def test_contact_figures_written(tmp_path: Path) -> None:
 
 def test_no_contact_figures_outside_h4(tmp_path: Path) -> None:
     comps = {"fixed": SimpleNamespace(task=SimpleNamespace(dim=3, contacts=()))}
-    written = write_figures(tmp_path, comps, {"fixed": [plot_log()]}, {"lowpass_hz": 30.0})
+    written = write_figures(tmp_path, figure_inputs(comps, LOWPASS, {}), {"fixed": [plot_log()]})
     assert written
     assert not (tmp_path / "contact_transitions.png").exists()
 

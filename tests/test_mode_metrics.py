@@ -13,7 +13,7 @@ from omegaconf import DictConfig
 from ccm.core.errors import ConfigError
 from ccm.metrics.modes import KNOWN, MODE_METRIC_KEYS, NEW, mode_metrics, true_surface_ids
 from ccm.metrics.trial import EXTRA_METRICS
-from ccm.plots.run import write_figures
+from ccm.plots.run import figure_inputs, write_figures
 
 DT = 0.001
 PARAMS = {"transition_pre_s": 0.05, "transition_tolerance_s": 0.25, "high_stiffness_Npm": 1650.0}
@@ -77,6 +77,9 @@ def three_patch_log(lag: int = 0) -> dict[str, np.ndarray]:
     decide(log, 1500 + lag, 1500 + lag + batch, 1, NEW, conf=0.2, second=0.0)
     decide(log, 2500 + lag, 2500 + lag + batch, 0, KNOWN, conf=0.95, second=0.05)
     return log
+
+
+LOWPASS = {"lowpass_hz": 30.0}
 
 
 def test_registered_as_extra_metric() -> None:
@@ -253,7 +256,7 @@ def test_mode_figures_written(tmp_path: Path) -> None:
         del fixed[k]
     logs = {"modal": [three_patch_log(), three_patch_log(lag=3)], "fixed": [fixed]}
     trials = [{"condition": "modal", "trial": k} for k in (1, 2, 3)]
-    written = write_figures(tmp_path, comps, logs, {"lowpass_hz": 30.0}, trials)
+    written = write_figures(tmp_path, figure_inputs(comps, LOWPASS, {}), logs, trials)
     names = {p.name for p in written}
     assert {"modes.png", "mode_stiffness_error.png"} <= names
     assert (tmp_path / "modes.png").stat().st_size > 0
@@ -265,7 +268,7 @@ def test_no_mode_figures_without_mode_signal(tmp_path: Path) -> None:
     for k in [k for k in log if k.startswith("mode")]:
         del log[k]
     comps = {"fixed": SimpleNamespace(task=SimpleNamespace(dim=2))}
-    written = write_figures(tmp_path, comps, {"fixed": [log]}, {"lowpass_hz": 30.0})
+    written = write_figures(tmp_path, figure_inputs(comps, LOWPASS, {}), {"fixed": [log]})
     assert written
     assert not (tmp_path / "modes.png").exists()
     assert not (tmp_path / "mode_stiffness_error.png").exists()

@@ -2,13 +2,15 @@
 
 The plan and its components are :mod:`ccm.experiment.components`; one trial's loop is
 :mod:`ccm.experiment.trial`. The runner never changes the working directory;
-``summary.json`` is written last. At the end of a run, every condition whose controller
+``summary.json`` is written after every other record, and the figures after it
+(:func:`_draw_figures`). At the end of a run, every condition whose controller
 learns writes ``state/<condition>.json`` (format in :mod:`ccm.experiment.learned_state`).
 Trials are numbered 1..n within the run (and seeded accordingly), also after ``init_from``.
 """
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -49,6 +51,8 @@ from ccm.metrics.trial import (
     trial_metrics,
 )
 from ccm.plots import animate
+from ccm.plots.redraw import PLOT_INPUTS, read_plot_inputs
+from ccm.plots.run import figure_inputs, write_figures
 
 
 def run_experiment(
@@ -65,9 +69,9 @@ def run_experiment(
     to ``state/<condition>.json`` (module docstring; ``init_from`` loads it).
     ``conditions.<name>`` in the summary averages the trials of the *last* phase; every
     trial is in ``trials``.
-    Returns the summary dict (also written to ``out_dir/summary.json`` last). Each trial's
-    record is appended to ``finished``, if given, as soon as the trial ends (what an
-    interrupted run's summary keeps).
+    Returns the summary dict (also written to ``out_dir/summary.json``, before the figures).
+    Each trial's record is appended to ``finished``, if given, as soon as the trial ends
+    (what an interrupted run's summary keeps).
     """
     settings = check_experiment(cfg)  # an unknown experiment.kind is refused here
     kind = cfg.experiment.get("kind", "trials")
@@ -93,6 +97,7 @@ def run_experiment(
     finally:
         progress.close()
     cpu["trials"] = time.process_time() - cpu0  # loops, recording, metrics, time series
+    cpu["figures"] = 0.0  # drawn after summary.json (_draw_figures), if at all
     save_learned_states(out_dir, plan, run.done)
     info = {"wall_time_s": (wall := time.perf_counter() - wall0), "sim_time_s": run.sim_time,
             "realtime_factor": run.sim_time / wall, "cpu_s": cpu, **run.timing.info()}  # fmt: skip
@@ -100,7 +105,10 @@ def run_experiment(
         wall0 = time.perf_counter()
         animate.write_animations(out_dir, cfg, plan, run.logs, run.trials)
         info["animate_wall_s"] = time.perf_counter() - wall0
-    return _write_run(cfg, out_dir, plan, run.logs, settings, run.trials, info)
+    summary = _write_run(cfg, out_dir, plan, settings, run.trials, info)
+    if settings["figures"]:
+        _draw_figures(out_dir, run.logs, run.trials, info)
+    return summary
 
 
 @dataclass
@@ -254,24 +262,12 @@ class _SolveTiming:
 
 
 def _write_run(
-    cfg: DictConfig, out_dir: Path, plan: Plan, logs: Mapping[str, Any],
-    settings: Mapping[str, Any], trials_out: list[dict[str, Any]], info: dict[str, Any],
+    cfg: DictConfig, out_dir: Path, plan: Plan, settings: Mapping[str, Any],
+    trials_out: list[dict[str, Any]], info: dict[str, Any],
 ) -> dict[str, Any]:  # fmt: skip
-    """Figures, the H4 contact table, ``run_info.json`` (wall-clock facts vary run to run,
-    so they live outside the summary; the figures' CPU seconds join ``info["cpu_s"]``) and
-    ``summary.json`` last; returns the summary."""
-    cpu0 = time.process_time()
-    if settings["figures"]:
-        from ccm.plots.run import write_figures
-
-        write_figures(
-            out_dir / "figures",
-            {cond.name: phases[-1][1] for cond, phases in plan},
-            logs,
-            {**settings, "metrics": to_plain(cfg.metrics)},
-            trials_out,
-        )
-    info.setdefault("cpu_s", {})["figures"] = time.process_time() - cpu0
+    """The H4 contact table, ``plot_inputs.json`` (what the figures need besides the time
+    series: :func:`ccm.plots.run.figure_inputs`), ``run_info.json`` (wall-clock facts vary run
+    to run, so they live outside the summary) and ``summary.json`` last; returns the summary."""
     table = contact_table(trials_out)
     if table is not None:  # seed A Table 1 layout (H4 contact learning)
         write_atomic(out_dir / "contact_learning.md", table)
@@ -297,9 +293,35 @@ def _write_run(
     init_from = OmegaConf.select(cfg, "init_from", default=None)
     if init_from is not None:
         summary["init_from"] = str(init_from)  # as given: the same command, the same summary
+    inputs = figure_inputs(
+        {cond.name: phases[-1][1] for cond, phases in plan}, settings, to_plain(cfg.metrics)
+    )
+    write_json_atomic(out_dir / PLOT_INPUTS, inputs)
     write_json_atomic(out_dir / "run_info.json", info)
     write_json_atomic(out_dir / "summary.json", summary)
     return summary
+
+
+def _draw_figures(
+    out_dir: Path, logs: Mapping[str, Any], trials: Sequence[Mapping[str, Any]],
+    info: dict[str, Any],
+) -> None:  # fmt: skip
+    """The run's figures, drawn after its numbers are written (issue #40: ``summary.json``
+    never waits on a figure). A figure that fails leaves the record whole: one line on
+    stderr, ``figures_error`` in ``run_info.json``, and ``ccm plots`` draws them again. Their
+    CPU seconds join ``run_info.json``'s ``cpu_s``."""
+    cpu0 = time.process_time()
+    try:
+        write_figures(out_dir / "figures", read_plot_inputs(out_dir), logs, trials)
+    except Exception as exc:  # the numbers stand; a figure bug must not fail the run
+        info["figures_error"] = f"{type(exc).__name__}: {exc}"
+        print(
+            f"ccm: warning: figures failed ({info['figures_error']}); the numbers are written; "
+            f"`ccm plots {out_dir}` draws them again",
+            file=sys.stderr,
+        )
+    info["cpu_s"]["figures"] = time.process_time() - cpu0
+    write_json_atomic(out_dir / "run_info.json", info)
 
 
 _TRIAL_KEYS = ("condition", "phase", "trial", "seed")

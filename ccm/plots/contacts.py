@@ -100,10 +100,11 @@ def write_contact_figures(
     logs: Mapping[str, Sequence[Log]],
     dim: int,
     trials: Sequence[Mapping[str, Any]],
-    settings: Mapping[str, Any],
+    lowpass_hz: float,
     save: Callable[[Any, str], None],
 ) -> None:
-    """Draw ``contact_transitions.png`` (and ``_last``) through ``save(fig, name)``.
+    """Draw ``contact_transitions.png`` (and ``_last``) through ``save(fig, name)``; the
+    speed and acceleration are low-passed at ``lowpass_hz``.
 
     Nothing is drawn unless :func:`wants_contact_figures`. Call with the Agg backend selected
     (as :func:`ccm.plots.run.write_figures` does).
@@ -111,7 +112,6 @@ def write_contact_figures(
     runs = {name: r for name, r in logs.items() if r}
     if not runs or not wants_contact_figures(runs, trials):
         return
-    lowpass_hz = float(settings["lowpass_hz"])
     sub = f"low-pass {lowpass_hz:g} Hz; shaded: transition phase; dashed: detected contacts"
     first = [(_trial_label(n, trials, 0), r[0]) for n, r in runs.items()]
     save(

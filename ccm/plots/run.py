@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from ccm.core.errors import to_plain
 from ccm.core.filters import derivatives
 from ccm.core.records import AXES, axes_columns, save_figure
 from ccm.metrics.trial import motion_error
@@ -19,22 +20,40 @@ from ccm.plots.patches import write_patch_figure
 from ccm.plots.rail import write_rail_figure
 
 
+def figure_inputs(
+    components: Mapping[str, Any], settings: Mapping[str, Any], metrics: Mapping[str, Any]
+) -> dict[str, Any]:
+    """What the figures need of a run besides its time series and trial records, as JSON-ready
+    data (the run writes it as ``plot_inputs.json``; ``ccm plots`` reads it back): the task's
+    dimension and contacts, each condition's chance-constraint bound f̄, the low-pass of the
+    derived kinematics and the ``metrics`` config. ``components``: condition -> an object
+    with ``task`` (``dim``, ``contacts``) and optionally ``controller``."""
+    task = next(iter(components.values())).task
+    return {
+        "dim": int(task.dim),
+        "contacts": to_plain(list(getattr(task, "contacts", ()) or ())),
+        "chance_bounds": _chance_bounds(components),
+        "lowpass_hz": float(settings["lowpass_hz"]),
+        "metrics": to_plain(dict(metrics)),
+    }
+
+
 def write_figures(
     fig_dir: Path,
-    components: Mapping[str, Any],
+    inputs: Mapping[str, Any],
     logs: Mapping[str, Sequence[Mapping[str, np.ndarray]]],
-    settings: Mapping[str, Any],
     trials: Sequence[Mapping[str, Any]] = (),
 ) -> list[Path]:
     """Write PNGs comparing the last trial of every condition; return their paths.
 
-    Besides the five standard figures, ``error_vs_trial.png`` appears when a condition has
-    several trials, ``force_prediction.png`` when a controller logs ``pred_force_N``, and
-    ``modes.png`` / ``mode_stiffness_error.png`` when it logs ``mode`` (:mod:`ccm.plots.modes`),
-    and ``contact_transitions.png`` / ``patch_transitions.png`` for the H4 contacts experiments
-    (:mod:`ccm.plots.contacts`, :mod:`ccm.plots.patches`), and ``mpc_*.png`` for the GP-MPC
-    controller (:mod:`ccm.plots.mpc`), ``mpc_rail_damping.png`` for its rail task
-    (:mod:`ccm.plots.rail`).
+    ``inputs`` is :func:`figure_inputs`' data; ``logs`` holds each condition's first and
+    latest trial's columns. Besides the five standard figures, ``error_vs_trial.png`` appears
+    when a condition has several trials, ``force_prediction.png`` when a controller logs
+    ``pred_force_N``, and ``modes.png`` / ``mode_stiffness_error.png`` when it logs ``mode``
+    (:mod:`ccm.plots.modes`), and ``contact_transitions.png`` / ``patch_transitions.png`` for
+    the H4 contacts experiments (:mod:`ccm.plots.contacts`, :mod:`ccm.plots.patches`), and
+    ``mpc_*.png`` for the GP-MPC controller (:mod:`ccm.plots.mpc`), ``mpc_rail_damping.png``
+    for its rail task (:mod:`ccm.plots.rail`).
     """
     import matplotlib
 
@@ -45,9 +64,9 @@ def write_figures(
     last = {name: runs[-1] for name, runs in logs.items() if runs}
     if not last:
         return written
-    dim = next(iter(components.values())).task.dim
-    metrics_cfg = settings.get("metrics") or {}
-    lowpass_hz = float(settings["lowpass_hz"])
+    dim = int(inputs["dim"])
+    metrics_cfg = inputs.get("metrics") or {}
+    lowpass_hz = float(inputs["lowpass_hz"])
 
     def save(fig: Any, name: str) -> None:
         path = fig_dir / name
@@ -59,18 +78,17 @@ def write_figures(
     _force_figure(last, dim, save)
     # stiffness vs time, environment changes marked; per trial (seed A Eq. 4b, Fig. 10a)
     write_stiffness_figure(last, trials, metrics_cfg, save)
-    _kinematics_figure(last, dim, settings["lowpass_hz"], save)
+    _kinematics_figure(last, dim, lowpass_hz, save)
     _error_vs_trial_figure(trials, save)
     _force_prediction_figure(last, dim, save)
     # contact modes with confidences; stiffness and error around transitions (seed A Figs 9-10)
     write_mode_figures(logs, dim, trials, save)
     # speed, acceleration and force around collisions (seed A §4.5.1, Fig. 16)
-    write_contact_figures(logs, dim, trials, settings, save)
+    write_contact_figures(logs, dim, trials, lowpass_hz, save)
     if wants_contact_figures(logs, trials):  # impact-less transitions (seed A Figs 19-20)
-        task = next(iter(components.values())).task
-        write_patch_figure(logs, task.contacts, dim, lowpass_hz, save)
+        write_patch_figure(logs, inputs.get("contacts") or (), dim, lowpass_hz, save)
     # seed B GP-MPC: contact force, impedance, belief (seed B Figs 6, 8, 11)
-    write_mpc_figures(last, dim, save, _chance_bounds(components))
+    write_mpc_figures(last, dim, save, dict(inputs.get("chance_bounds") or {}))
     # seed B rail task: damping against the distance to the rail (seed B Fig. 8)
     write_rail_figure(fig_dir.parent, trials, dim, metrics_cfg, save)
     return written

@@ -9,6 +9,11 @@ would otherwise leave a core idle. Sweeps resume (finished runs are skipped), so
 same command again after an interruption only does what is missing. ``--quick`` runs seed 0
 with truncated trials (``experiment.fast=true``): a smoke test of the whole pipeline.
 
+Figures (issue #40): the trial-loop sweeps run with ``experiment.figures=false``; once they
+are done, the figures of the runs the report shows (each experiment's lowest seed) are drawn
+from their files, ``--lanes`` at a time (:mod:`ccm.plots.redraw`). ``ccm plots <out>/<name>``
+draws the other runs' figures on request. The analyses draw their own figures in every run.
+
 The wall time of every sweep and of the whole pipeline goes to ``<out>/paper_timing.json``.
 """
 
@@ -16,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -23,9 +29,14 @@ from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from omegaconf import OmegaConf
+
 from ccm.core.records import read_json_object, write_json_atomic
 from ccm.experiment.config_check import check_output_dir
-from ccm.experiment.user_configs import group_options
+from ccm.experiment.user_configs import config_dir, group_options
+from ccm.plots.redraw import draw_many
+from ccm.reporting.report import by_seed, collect
+from ccm.reporting.report import main as report
 
 # the paper experiments, longest first (job-seconds measured 2026-12-01 on 2 cores, for
 # scheduling only): h3 5 x 380, h1_adaptive_control 10 x ~95, mpc_contact 5 x 100 (each of its
@@ -43,11 +54,40 @@ def sweep_command(
     name: str, out: Path, quick: bool, launcher: str = "local", force: bool = False
 ) -> list[str]:
     """The ``ccm run -m`` command line of one experiment's sweep (``force``: ``--force``,
-    earlier records moved aside, :mod:`ccm.experiment.run_record`)."""
+    earlier records moved aside, :mod:`ccm.experiment.run_record`). A trial-loop sweep runs
+    without figures: :func:`draw_shown_figures` draws those the report shows afterwards."""
     cmd = [sys.executable, "-m", "ccm.cli", "run", *["--force"] * force, "-m", f"experiment={name}"]
     if quick:
         cmd += ["seed=0", "experiment.fast=true"]
+    if trial_loop(name):
+        cmd.append("experiment.figures=false")
     return [*cmd, f"hydra/launcher={launcher}", f"hydra.sweep.dir={out / name}"]
+
+
+def trial_loop(name: str) -> bool:
+    """Whether experiment ``name`` is a trial loop (its figures can be drawn from its files,
+    :mod:`ccm.plots.redraw`) rather than an analysis, which draws its own."""
+    cfg = OmegaConf.load(config_dir() / "experiment" / f"{name}.yaml")
+    return OmegaConf.select(cfg, "experiment.kind", default="trials") == "trials"
+
+
+def draw_shown_figures(out: Path, names: Sequence[str], lanes: int) -> dict[str, float]:
+    """Draw the figures of the runs the report shows (each trial-loop experiment's lowest
+    seed, :func:`ccm.reporting.report.by_seed`) that have none yet, ``lanes`` processes at a
+    time; ``{"wall_s", "cpu_s"}`` (the workers' CPU included)."""
+    t0, cpu0 = time.perf_counter(), _cpu_with_children()
+    runs = collect(out)
+    shown = [by_seed(runs, n)[:1] for n in names if trial_loop(n)]
+    todo = [d for (d,) in filter(None, shown) if not any((d / "figures").glob("*.png"))]
+    for run, n, error in draw_many(todo, lanes):
+        print(f"ccm paper: figures: {error}" if error else f"ccm paper: {n} figures -> {run}")
+    return {"wall_s": time.perf_counter() - t0, "cpu_s": _cpu_with_children() - cpu0}
+
+
+def _cpu_with_children() -> float:
+    """User + system CPU seconds of this process and of the children it has waited for."""
+    usage = (resource.getrusage(who) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return sum(u.ru_utime + u.ru_stime for u in usage)
 
 
 def _run_sweep(
@@ -127,8 +167,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"ccm paper: {len(names)} sweeps, {args.lanes} at a time -> {args.out}", flush=True)
     with ThreadPoolExecutor(max_workers=args.lanes) as pool:
         results = list(pool.map(lambda n: _run_sweep(n, args.out, args, t0), names))
-    from ccm.reporting.report import main as report
-
+    figures = draw_shown_figures(args.out, names, args.lanes)
     report_rc = report([str(args.out)])
     wall = time.perf_counter() - t0
     failed = [n for n, rc, _, _ in results if rc != 0]
@@ -137,7 +176,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         {"wall_s": round(wall, 1), "lanes": args.lanes, "quick": args.quick,
          "launcher": args.launcher,
          "sweeps_s": {n: round(s, 1) for n, _, s, _ in results},
-         "sweeps_cpu_s": {n: round(c, 1) for n, _, _, c in results}, "failed": failed},
+         "sweeps_cpu_s": {n: round(c, 1) for n, _, _, c in results},
+         "figures_s": round(figures["wall_s"], 1), "figures_cpu_s": round(figures["cpu_s"], 1),
+         "failed": failed},
     )  # fmt: skip
     print(f"ccm paper: {len(names) - len(failed)}/{len(names)} sweeps ok, wall {wall / 60:.1f} min")
     return 1 if failed or report_rc != 0 else 0

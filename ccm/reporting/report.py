@@ -203,10 +203,17 @@ def _ci(x: float) -> str:
     return "–" if math.isnan(x) else f"{x:.2g}"
 
 
-def _figure(runs: Sequence[tuple[Path, dict]], experiment: str, name: str) -> Path | None:
+def by_seed(runs: Sequence[tuple[Path, dict]], experiment: str) -> list[Path]:
+    """The ok runs of ``experiment``, lowest seed first (then by path): the order in which
+    the report looks for a claim's figures (the first run that has the file is shown)."""
     ok = [(s.get("seed", 0), d) for d, s in runs
           if s.get("experiment") == experiment and s.get("status") == "ok"]  # fmt: skip
-    for _, d in sorted(ok, key=lambda x: (x[0] if isinstance(x[0], int) else 0, str(x[1]))):
+    ok.sort(key=lambda x: (x[0] if isinstance(x[0], int) else 0, str(x[1])))
+    return [d for _, d in ok]
+
+
+def _figure(runs: Sequence[tuple[Path, dict]], experiment: str, name: str) -> Path | None:
+    for d in by_seed(runs, experiment):
         if (d / "figures" / name).is_file():
             return d / "figures" / name
     return None
