@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 import ccm
 from ccm.experiment import jobdir, user_configs
+from ccm.experiment.composer import Composer
 from ccm.experiment.precheck import compose_extra, precheck, yaml_line
 from ccm.experiment.trust import TRUST_FLAG
 from ccm.experiment.user_configs import (  # noqa: F401 - also importable from here
@@ -178,6 +179,7 @@ def _open_and_run(cfg: DictConfig, out_dir: Path, multirun: bool) -> None:
 def _run_locked(cfg: DictConfig, out_dir: Path, task_overrides: list[str], multirun: bool) -> None:
     """Run the experiment into the locked ``out_dir``; a failure or an interruption is written
     to summary.json (status ``failed`` / ``interrupted``) before it ends the run."""
+    from hydra.core.hydra_config import HydraConfig
     from threadpoolctl import threadpool_limits
 
     from ccm.analyses.dispatch import run
@@ -195,10 +197,12 @@ def _run_locked(cfg: DictConfig, out_dir: Path, task_overrides: list[str], multi
         import scipy.linalg  # noqa: F401
 
         with threadpool_limits(limits=int(cfg.get("blas_threads") or 1)):
-            summary = run(
-                cfg, lambda extra: compose_extra(task_overrides, extra), out_dir,
-                finished=finished,
-            )  # fmt: skip
+            # conditions derive from the job's config, composed anew only to change a group
+            choices = HydraConfig.get().runtime.choices
+            composer = Composer(
+                lambda extra: compose_extra(task_overrides, extra, hydra_node=True), cfg, choices
+            )
+            summary = run(cfg, composer, out_dir, finished=finished)
     except RunInterrupted as exc:
         record_interrupt(out_dir, cfg, exc, finished)
         raise

@@ -137,6 +137,10 @@ def test_the_target_budget_and_the_runs_cpu_parts() -> None:
     assert t["own_measured_s"] == 29.0
     assert t["own_measured_us_per_step"] == pytest.approx(29.0 / 5000 * 1e6)
     assert t["cpu_parts_s"] == {"runs": 2.0, "plan": 1.5, "trials": 6.0, "figures": 2.0}
+    # the figures ccm paper draws after the sweeps (issue #40) count in the measured CPU
+    after = totals(rows, cores=2, target_wall_s=10.0, figures_after_s=3.0)
+    assert after["measured_cpu_s"] == 37.0 and after["own_measured_s"] == 32.0
+    assert after["cpu_parts_s"]["figures"] == 5.0
 
 
 def test_without_a_paper_run_the_floor_says_so(

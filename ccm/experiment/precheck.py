@@ -9,7 +9,10 @@ import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from omegaconf import DictConfig
+
 from ccm.experiment import user_configs
+from ccm.experiment.composer import Composer, job_config
 from ccm.experiment.trust import check_no_env, check_targets
 from ccm.experiment.user_configs import GROUPS
 
@@ -81,24 +84,66 @@ def precheck(
             bad = _check_groups(combo, dirs)
             if bad:
                 return bad
-            err = _guarded(lambda c=combo: _check_combo(c, planned, dirs))
+        first: list[tuple[DictConfig, Composer]] = []  # the first combination's
+        err = _guarded(lambda: first.append(_first_combo(overrides, combos[0], dirs)))
+        if err:
+            return err
+        full, combos_from_first = first[0]
+        for combo in combos:
+            err = _guarded(
+                lambda c=combo: _check_combo(c, combos[0], combos_from_first, planned, dirs)
+            )
             if err:
                 return err
-        return _guarded(lambda: _check_hydra(overrides, combos[0], multirun, dirs, trusted))
+        return _guarded(lambda: _check_hydra(overrides, full, multirun, dirs, trusted))
+
+
+def _hydra_overrides(overrides: Sequence[str]) -> list[str]:
+    """The ``hydra.*`` overrides that are not sweeps (``hydra.searchpath`` left out: ``dirs``
+    carries it)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    return [
+        ov.input_line for ov in OverridesParser.create().parse_overrides(list(overrides))
+        if ov.key_or_group.startswith("hydra") and not ov.is_sweep_override()
+        and ov.key_or_group != user_configs.SEARCHPATH
+    ]  # fmt: skip
+
+
+def _first_combo(
+    overrides: Sequence[str], combo: list[str], dirs: Sequence[Path]
+) -> tuple[DictConfig, Composer]:
+    """The first combination composed once, with its ``hydra`` node and the run's own
+    ``hydra.*`` overrides (Hydra's settings are checked on it), and a
+    :class:`ccm.experiment.composer.Composer` that derives the other combinations from it:
+    a combination that changes a value (a seed) is the first's config with that value; one
+    that changes a config group (``task=…``) is composed in full."""
+    own = _hydra_overrides(overrides)
+
+    def compose_combo(changed: Sequence[str]) -> DictConfig:
+        keys = {o.partition("=")[0] for o in changed}
+        others = [o for o in combo if o.partition("=")[0] not in keys]
+        return compose_extra([*others, *own], changed, dirs, hydra_node=True)
+
+    full = compose_combo([])
+    return full, Composer(compose_combo, job_config(full), full.hydra.runtime.choices)
 
 
 def _check_combo(
-    combo: list[str], planned: set[tuple[str, ...]], dirs: Sequence[Path] = ()
+    combo: list[str],
+    first: list[str],
+    from_first: Composer,
+    planned: set[tuple[str, ...]],
+    dirs: Sequence[Path],
 ) -> None:
-    """Compose one override combination and build its plan (once per set of overrides
-    other than the seed, which changes no component); raise on bad input."""
-    from hydra import compose
-
+    """Derive one override combination's config from the first's and build its plan (once
+    per set of overrides other than the seed, which changes no component); raise on bad
+    input."""
     from ccm.experiment.components import check_experiment, plan_experiment
     from ccm.experiment.config_check import check_trial_steps
     from ccm.metrics.trial import check_extra_metrics
 
-    cfg = compose("config", overrides=[*combo, *user_configs.searchpath_override(dirs)])
+    cfg, choices = from_first.derive([o for o in combo if o not in first])
     check_no_env(cfg, combo)  # before anything resolves a value into a message
     settings = check_experiment(cfg)
     check_extra_metrics(cfg)
@@ -106,20 +151,22 @@ def _check_combo(
     if unseeded in planned:
         return
     planned.add(unseeded)
-    plan = plan_experiment(cfg, lambda x: compose_extra(combo, x, dirs), settings["trials"])
+    conditions = Composer(lambda x: compose_extra(combo, x, dirs, hydra_node=True), cfg, choices)
+    plan = plan_experiment(cfg, conditions, settings["trials"])
     if cfg.experiment.get("kind", "trials") == "trials":
         check_trial_steps(plan, settings)
 
 
 def _check_hydra(
     overrides: Sequence[str],
-    base: list[str],
+    cfg: DictConfig,
     multirun: bool,
     dirs: Sequence[Path] = (),
     trusted: bool = False,
 ) -> None:
-    """Compose the base combination with its ``hydra`` overrides (sweeps left out) and check
-    the run or sweep directory, the job name, the launcher and the callables Hydra will call."""
+    """Check the first combination's ``hydra`` settings (composed with the run's own
+    ``hydra.*`` overrides, sweeps left out): the run or sweep directory, the job name, the
+    launcher and the callables Hydra will call."""
     from hydra import compose
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
@@ -127,19 +174,13 @@ def _check_hydra(
     from ccm.experiment import run_record
     from ccm.experiment.config_check import check_hydra
 
-    parsed = OverridesParser.create().parse_overrides(list(overrides))
-    own = [
-        ov.input_line for ov in parsed
-        if ov.key_or_group.startswith("hydra") and not ov.is_sweep_override()
-        and ov.key_or_group != user_configs.SEARCHPATH  # dirs carries it
-    ]  # fmt: skip
-    search = user_configs.searchpath_override(dirs)
-    cfg = compose("config", overrides=[*base, *own, *search], return_hydra_config=True)
     check_no_env(cfg, list(overrides))
     check_hydra(cfg.hydra, multirun)
     check_targets(cfg.hydra, trusted)
     if multirun:  # the sweep's config: the overrides but the sweeps (as Hydra's multirun.yaml)
+        parsed = OverridesParser.create().parse_overrides(list(overrides))
         unswept = [ov.input_line for ov in parsed if not ov.is_sweep_override()]
+        search = user_configs.searchpath_override(dirs)
         sweep = compose("config", overrides=[*unswept, *search])
         try:
             run_record.check_sweep_record(Path(cfg.hydra.sweep.dir), sweep, run_record.forced())
@@ -182,10 +223,14 @@ def yaml_line(exc: BaseException) -> str:
 
 
 def compose_extra(  # noqa: ANN202
-    base: Sequence[str], extra: Sequence[str], dirs: Sequence[Path] | None = None
+    base: Sequence[str],
+    extra: Sequence[str],
+    dirs: Sequence[Path] | None = None,
+    hydra_node: bool = False,
 ):
     """Compose ``base`` plus a condition's ``extra`` overrides (``dirs``: the user's config
-    directories; None inside a Hydra job, where Hydra's own sources say)."""
+    directories; None inside a Hydra job, where Hydra's own sources say), with the ``hydra``
+    node if ``hydra_node`` (its group choices: :class:`ccm.experiment.composer.Composer`)."""
     from hydra import compose
 
     if dirs is None:
@@ -196,7 +241,8 @@ def compose_extra(  # noqa: ANN202
 
         key, _, _ = bad.partition(":")
         raise ConfigError(f"experiment.conditions ({key})", bad.split(": ", 1)[1])
-    return compose("config", overrides=[*base, *extra, *user_configs.searchpath_override(dirs)])
+    overrides = [*base, *extra, *user_configs.searchpath_override(dirs)]
+    return compose("config", overrides=overrides, return_hydra_config=hydra_node)
 
 
 def _one_line(exc: BaseException) -> str:
