@@ -4,16 +4,20 @@ spirit of scikit-learn's ``check_estimator`` and Gymnasium's env checker (issue 
 * A simulator: ``with`` closes it; ``reset(seed)`` is deterministic; ``step`` returns an
   Observation of the task's dimension and the same ``StepInfo.extra`` keys every step.
 * A controller: a Command of the right shapes; the same ``signals()`` keys every step; the
-  learned state survives a JSON round trip into a fresh controller of the same config.
+  learned state survives a JSON round trip into a fresh controller of the same config; it
+  keeps no view of the step objects, which may be reused (issue #40,
+  :func:`ccm.checks.steps.check_keeps_no_views`).
 """
 
 from __future__ import annotations
 
+import copy
 import json
 
 import numpy as np
 import pytest
 
+from ccm.checks.steps import ContractError, check_keeps_no_views
 from ccm.control.registry import make_controller
 from ccm.core.errors import to_plain
 from ccm.core.types import Command, Observation
@@ -31,7 +35,7 @@ def run_steps(comp, seed: int, steps: int = STEPS) -> list[Observation]:  # noqa
     comp.controller.reset(comp.task.dim, comp.sim.control_dt)
     pattern = comp.controller.prepare(comp.task.pattern, comp.task.contacts,
                                       np.random.default_rng(seed))  # fmt: skip
-    out = [obs]
+    out = [copy.deepcopy(obs)]  # the simulator may reuse its objects
     keys = None
     for _ in range(steps):
         cmd = comp.controller.step(obs, pattern.sample(obs.t))
@@ -42,7 +46,7 @@ def run_steps(comp, seed: int, steps: int = STEPS) -> list[Observation]:  # noqa
         assert keys is None or set(sig) == keys, "signals() keys changed between steps"
         keys = set(sig)
         obs, _ = comp.sim.step(cmd)
-        out.append(obs)
+        out.append(copy.deepcopy(obs))
     return out
 
 
@@ -96,3 +100,61 @@ def test_a_controller_is_deterministic_per_seed(composer, name: str) -> None:
         runs.append(np.array([o.position for o in run_steps(comp, seed=2, steps=200)]))
         comp.sim.close()
     assert np.array_equal(runs[0], runs[1])
+
+
+#: controllers whose history shows only with contacts or a setting, checked there too, and
+#: the steps that takes (h4_impactless, seed 0: the first contact at step 1436). GP-MPC with
+#: a force latency kept views of the measured force (caught at step 3: fixed); AVIC with
+#: anticipation kept views of targets that the check's window does not reach (copied now)
+MORE = [
+    ("avic_anticipation", ["task=h4_impactless", "sim=pybullet3d"], 2000),
+    ("avic_modes", ["task=changing_surface", "sim=pybullet3d"], 2000),
+    ("gp_mpc", ["task=multi_spring", "controller.force_delay_s=0.004"], 400),  # a latency
+]
+
+
+@pytest.mark.parametrize(
+    ("name", "where", "steps"), [(n, ["task=multi_spring"], 400) for n in controllers()] + MORE
+)
+def test_a_controller_keeps_no_view_of_the_step_objects(
+    composer, name: str, where: list[str], steps: int
+) -> None:
+    cfg = composer([f"controller={name}", *where])
+    comp = build_components(cfg)
+    try:
+        check_keeps_no_views(
+            lambda: make_controller(to_plain(cfg.controller)), comp.sim, comp.task.pattern,
+            comp.task.contacts, steps=steps, seed=0,
+        )  # fmt: skip
+    finally:
+        comp.sim.close()
+
+
+class _KeepsAView:
+    """A broken controller: it keeps the observation's position array as its reference."""
+
+    def __init__(self) -> None:
+        self.start = None
+
+    def reset(self, dim: int, control_dt: float) -> None:
+        self.start = None
+
+    def prepare(self, pattern, contacts, rng):  # noqa: ANN001, ANN201
+        return pattern
+
+    def step(self, obs: Observation, target) -> Command:  # noqa: ANN001
+        if self.start is None:
+            self.start = obs.position  # a view, not a copy
+        return Command(100.0 * (self.start - obs.position), np.zeros(obs.ang_vel.shape))
+
+
+def test_the_view_check_catches_a_controller_that_keeps_one(composer) -> None:
+    comp = build_components(composer(["controller=fixed_impedance", "task=multi_spring"]))
+    try:
+        with pytest.raises(
+            ContractError, match=r"^step \d+: the command's force differs when the step objects "
+            r"are reused .*keeps a view.*copy what you keep$",
+        ):  # fmt: skip
+            check_keeps_no_views(_KeepsAView, comp.sim, comp.task.pattern, steps=20)
+    finally:
+        comp.sim.close()

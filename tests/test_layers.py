@@ -3,7 +3,7 @@ below it, and no import cycle exists, counting imports inside functions.
 
 The layers, bottom to top (``|`` separates siblings, which must not import each other)::
 
-    core  <-  sim | tasks | learn  <-  control  <-  metrics  <-  plots  <-  experiment
+    core  <-  sim | tasks | learn  <-  control  <-  metrics | checks  <-  plots  <-  experiment
           <-  analyses  <-  reporting  <-  cli, bench
 
 Plots sit above metrics rather than beside them: a figure draws what a metric computes (the
@@ -35,6 +35,7 @@ LAYERS: list[tuple[int, str, tuple[str, ...]]] = [
     (1, "learn", ("ccm.learn", "ccm.learn.*")),
     (2, "control", ("ccm.control", "ccm.control.*")),
     (3, "metrics", ("ccm.metrics", "ccm.metrics.*")),
+    (3, "checks", ("ccm.checks", "ccm.checks.*")),
     (4, "plots", ("ccm.plots", "ccm.plots.*")),
     (5, "experiment", ("ccm.experiment", "ccm.experiment.*")),
     (6, "analyses", ("ccm.analyses", "ccm.analyses.*")),

@@ -43,7 +43,12 @@ class Controller(ABC):
 
     @abstractmethod
     def step(self, obs: Observation, target: TargetSample) -> Command:
-        """Compute the task-space wrench command for this control step."""
+        """Compute the task-space wrench command for this control step.
+
+        ``obs`` and ``target`` are valid during this call only: the simulator and the pattern
+        may update the same objects in place next step, so a controller copies what it
+        keeps (:mod:`ccm.core.types`; :func:`ccm.checks.steps.check_keeps_no_views`). The
+        returned command is read before the next call."""
 
     @abstractmethod
     def signals(self) -> dict[str, float]:

@@ -3,10 +3,14 @@
 Shapes use ``n`` = task-space dimension (2 for the planar world, 3 for PyBullet) and ``r`` =
 rotational dimension (1 in 2D: angle about z; 3 in 3D).
 
-The records are treated as immutable by convention: nothing mutates an ``Observation`` or a
-``TargetSample`` after it is made. They are plain slotted dataclasses rather than frozen ones
-because a frozen dataclass costs ~0.5 µs more per construction, and the loop builds several
-of them every 1 ms control step (``make bench``).
+**Valid until the next step** (issue #40). A simulator, a pattern or a controller may hand
+out the same object every step with its arrays updated in place, as MuJoCo's ``MjData`` is:
+what a receiver gets is read-only to it and holds its values until the giver's next step. A
+receiver that keeps anything for later (a controller's history, a logger) copies it
+(``obs.force.copy()``, ``float(obs.t)``); the recorder copies each step at ``record()``.
+``ccm.checks.steps.check_keeps_no_views`` tests a controller for this. The records are
+plain slotted dataclasses rather than frozen ones because a frozen dataclass costs ~0.5 µs
+more per construction (``make bench``).
 """
 
 from __future__ import annotations

@@ -51,7 +51,11 @@ class Simulator(ABC):
 
     @abstractmethod
     def step(self, command: Command) -> tuple[Observation, StepInfo]:
-        """Apply ``command`` for one control period and return the new observation."""
+        """Apply ``command`` for one control period and return the new observation and truth.
+
+        ``command`` is read during this call only. The returned objects may be the ones of
+        the previous step, updated in place: they are valid until the next ``step`` or
+        ``reset`` (:mod:`ccm.core.types`)."""
 
     def close(self) -> None:  # noqa: B027 - optional hook, most backends hold nothing
         """Release backend resources."""

@@ -226,13 +226,14 @@ class AnticipatoryAVIC(ContactEvents, Controller):
     def step(self, obs: Observation, target: TargetSample) -> Command:
         """Base command (Eq. 4a) blended with the transition-phase command (Eq. 8, Eq. 10)."""
         event = self.detector.update_obs(obs)
-        self._vel_hist.append((obs.t, target.velocity))
+        # copies: the step objects may be reused (issue #40)
+        self._vel_hist.append((obs.t, target.velocity.copy()))
         self._force_hist.append((obs.t, obs.force.copy()))
-        self._target_hist.append((obs.t, target.position))
+        self._target_hist.append((obs.t, target.position.copy()))
         base = self.base
         if base.signal("mode_trigger") == 1.0:
             self._trigger_pos = obs.position.copy()
-            self._trigger_target = (target.position, target.velocity)
+            self._trigger_target = (target.position.copy(), target.velocity.copy())
         cmd = base.step(obs, target)
         self._impactless_event(obs)
         hit = self._contact_made(obs, target, event)

@@ -252,7 +252,7 @@ class GPMPC(Controller):
             self._mpc_step(obs)
         # Eq. 4 rendered with backward Euler at the control rate: (M + dt D) v⁺ = M v + dt (f − f^r)
         m, d = self.mass, self.damping
-        self._forces.append(obs.force)
+        self._forces.append(obs.force.copy())  # the step objects may be reused (issue #40)
         f_loop = self._forces.pop(0) if len(self._forces) > self._delay_steps else self._forces[0]
         v_new = (m * self._v_ref + dt * (f_loop - self.f_ref)) / (m + dt * d)
         a_ref = (v_new - self._v_ref) / dt
