@@ -6,6 +6,7 @@ used). Every assertion states its tolerance.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
 from typing import Any
 
@@ -35,12 +36,13 @@ def run(
     n: int,
     seed: int = 0,
 ) -> list[tuple[Observation, StepInfo]]:
-    """Reset, then apply ``law(obs) -> force`` for ``n`` control steps; return every step."""
+    """Reset, then apply ``law(obs) -> force`` for ``n`` control steps; return a copy of
+    every step (the simulator reuses its objects: issue #40)."""
     obs, info = sim.reset(seed)
     out = []
     for _ in range(n):
         obs, info = sim.step(Command(law(obs), ZERO_T))
-        out.append((obs, info))
+        out.append(copy.deepcopy((obs, info)))
     return out
 
 
@@ -364,12 +366,20 @@ def test_control_decimation_averages_the_physics_steps() -> None:
     assert np.array_equal(coarse_steps[-1][0].position, fine_steps[-1][0].position)
 
 
-def test_reset_rebuilds_and_returns_fresh_arrays() -> None:
+def test_reset_rebuilds_and_hands_out_read_only_step_objects() -> None:
+    """A fresh start at every reset; one Observation and StepInfo per trial, updated in place
+    and read-only to the receiver (valid until the next step, issue #40)."""
     sim = make_sim({"springs": [{"anchor": [0.0, 0.0], "stiffness": 50.0}]}, [0.2, 0.1])
     first = run(sim, lambda o: np.array([3.0, -1.0]), 200)
     second = run(sim, lambda o: np.array([3.0, -1.0]), 200)
     assert np.array_equal(first[-1][0].position, second[-1][0].position), "reset is a fresh start"
-    obs, _ = sim.reset(0)
+    obs, info = sim.reset(0)
     assert np.array_equal(obs.position, [0.2, 0.1]) and np.array_equal(obs.lin_vel, [0.0, 0.0])
-    obs.position[0] = 99.0
-    assert sim.step(Command(np.zeros(2), ZERO_T))[0].position[0] < 1.0, "no aliasing"
+    for arr in (obs.position, obs.force, obs.lin_vel, info.true_force, info.contact_force):
+        with pytest.raises(ValueError, match="read-only"):
+            arr[0] = 99.0
+    kept = obs.lin_vel.copy()
+    nxt, nxt_info = sim.step(Command(np.array([3.0, -1.0]), ZERO_T))
+    assert nxt is obs and nxt_info is info and nxt.t == sim.dt * sim.control_decimation
+    assert not np.array_equal(obs.lin_vel, kept), "updated in place"
+    assert np.array_equal(kept, [0.0, 0.0]), "a copy keeps its values"

@@ -6,6 +6,7 @@ the EE is the default 1 kg, 0.05 m box.
 
 from __future__ import annotations
 
+import copy
 import math
 from pathlib import Path
 from typing import Any
@@ -38,13 +39,13 @@ def run(
     sim: Pymunk2D, force: Any, n: int, seed: int = 0
 ) -> tuple[tuple[Observation, StepInfo], list[tuple[Observation, StepInfo]]]:
     """Reset, then apply ``force`` (an array, or ``obs -> array``) for ``n`` control steps."""
-    first = sim.reset(seed)
+    first = copy.deepcopy(sim.reset(seed))  # the simulator reuses its objects (issue #40)
     obs = first[0]
     out = []
     for _ in range(n):
         f = force(obs) if callable(force) else force
         obs, info = sim.step(Command(np.asarray(f, dtype=float), ZERO_T))
-        out.append((obs, info))
+        out.append(copy.deepcopy((obs, info)))
     return first, out
 
 

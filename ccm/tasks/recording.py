@@ -53,8 +53,9 @@ import numpy as np
 from scipy.interpolate import PPoly, make_smoothing_spline
 
 from ccm.core.errors import ConfigError
+from ccm.core.vector import readonly
 from ccm.tasks.recording_file import MAX_SPEED_MPS, Recording, read_recording, resolve_path
-from ccm.tasks.segments import Segment, readonly
+from ccm.tasks.segments import Segment
 
 #: Default cut-off of the smoothing spline [Hz] (see the module docstring).
 CUTOFF_HZ = 5.0

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from ccm.core.errors import ConfigError, check_finite, check_nonneg, check_positive, check_vector
+from ccm.core.vector import readonly
 from ccm.tasks._trajectory_kernels import arc_eval, line_eval
 
 #: Relative tolerance for "start − center is perpendicular to the arc normal" (3D arcs).
@@ -65,11 +66,6 @@ def arrive_at_speed(tau: Any, duration: float, w: float) -> tuple[Any, Any, Any]
     sd = tau2 * (3.0 * a3 + tau * (4.0 * a4 + tau * 5.0 * a5)) / duration
     sdd = tau * (6.0 * a3 + tau * (12.0 * a4 + tau * 20.0 * a5)) / (duration * duration)
     return s, sd, sdd
-
-
-def readonly(arr: np.ndarray) -> np.ndarray:
-    arr.setflags(write=False)
-    return arr
 
 
 def unit_vector(key: str, value: Any, dim: int) -> np.ndarray:

@@ -27,12 +27,12 @@ from ccm.core.errors import (
     check_vector,
 )
 from ccm.core.types import TargetSample
+from ccm.core.vector import readonly
 from ccm.tasks.segments import (
     ArcSegment,
     HoldSegment,
     LineSegment,
     Segment,
-    readonly,
     unit_vector,
 )
 

@@ -52,6 +52,7 @@ from ccm.core.errors import (
     check_vector,
 )
 from ccm.core.types import Command, Observation, StepInfo
+from ccm.core.vector import readonly
 from ccm.sim.base import Simulator
 from ccm.sim.pymunk._contacts import ContactReader
 from ccm.sim.pymunk._raw import RawBody
@@ -171,6 +172,7 @@ class Pymunk2D(Simulator):
         self.sensor.reset(self._rng)
         self._steps = 0
         self._path = 0.0
+        self._new_step_objects()
         x, y = self.start[0], self.start[1]
         fsx, fsy = self._spring_force(x, y)
         if self._hri is None:
@@ -375,9 +377,9 @@ class Pymunk2D(Simulator):
         """Observation and truth for the current state; ``state`` = (x, y, vx, vy) if known,
         ``wrench`` = the true external (fx, fy, torque) and its contact part (fx, fy).
 
-        Every array is a view of one fresh buffer made here (one allocation instead of one
-        per array): the observation holds values, never the simulator's state.
-        """
+        The same two objects every step of a trial (made at ``reset``), their arrays
+        read-only views of one buffer written here in place: valid until the next step
+        (issue #40, :mod:`ccm.core.types`)."""
         body = self._body
         assert body is not None
         if state is None:
@@ -386,22 +388,32 @@ class Pymunk2D(Simulator):
             x, y, vx, vy = state
         angle, omega = (body.angle, body.angular_velocity) if self._rotates else (self._angle0, 0.0)
         fx, fy, tq, kx, ky = wrench
-        if self._ideal_sensor:  # measured = true, as FTSensor.measure gives it (a copy)
-            b = np.array([x, y, angle, vx, vy, omega, fx, fy, tq, kx, ky, fx, fy, tq])
-            f_meas, t_meas = b[_MEAS_F], b[_MEAS_T]
+        obs, info = self._obs, self._info
+        b = self._buf
+        if self._ideal_sensor:  # measured = true, as FTSensor.measure gives it
+            b[:] = (x, y, angle, vx, vy, omega, fx, fy, tq, kx, ky, fx, fy, tq)
         else:
-            b = np.array([x, y, angle, vx, vy, omega, fx, fy, tq, kx, ky])
-            f_meas, t_meas = self.sensor.measure(b[_TRUE_F], b[_TRUE_T])
-        obs = Observation(
-            self._steps * self.dt, b[_POS], b[_ANGLE], b[_VEL], b[_OMEGA], f_meas, t_meas
-        )
-        extra = {
-            "viscosity_Nspm": self._viscosity(x, y) if self._has_viscous else 0.0,
-            "surface_friction": mu if n_contacts > 0 else -1.0,
-            "contact": 1.0 if n_contacts > 0 else 0.0,
-        }
+            b[: _MEAS_F.start] = (x, y, angle, vx, vy, omega, fx, fy, tq, kx, ky)
+            b[_MEAS_F], b[_MEAS_T] = self.sensor.measure(info.true_force, info.true_torque)
+        obs.t = self._steps * self.dt
+        info.n_contacts = n_contacts
+        extra = info.extra
+        extra["viscosity_Nspm"] = self._viscosity(x, y) if self._has_viscous else 0.0
+        extra["surface_friction"] = mu if n_contacts > 0 else -1.0
+        extra["contact"] = 1.0 if n_contacts > 0 else 0.0
         if self._scheduled_springs:  # truth of the environment changes (metrics only)
             extra["springs_attached"] = self._attached()[4]
         if self._hri is not None:
             extra.update(self._hri.extra())
-        return obs, StepInfo(b[_TRUE_F], b[_TRUE_T], b[_CONTACT_F], n_contacts, extra)
+        return obs, info
+
+    def _new_step_objects(self) -> None:
+        """The trial's one Observation and StepInfo (:meth:`_output` updates them): read-only
+        views of one buffer that only the simulator writes."""
+        b = self._buf = np.zeros(_MEAS_T.stop)
+        pos, angle, vel, omega, f, t, true_f, true_t, contact_f = (
+            readonly(b[k]) for k in (_POS, _ANGLE, _VEL, _OMEGA, _MEAS_F, _MEAS_T, _TRUE_F,
+                                      _TRUE_T, _CONTACT_F)
+        )  # fmt: skip
+        self._obs = Observation(0.0, pos, angle, vel, omega, f, t)
+        self._info = StepInfo(true_f, true_t, contact_f, 0, {})
