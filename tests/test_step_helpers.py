@@ -90,3 +90,34 @@ def test_the_recorder_copies_each_step() -> None:
                         np.zeros(1))  # fmt: skip
     with pytest.raises(ValueError, match="^step 1: pos has 3 values, the log expects 2$"):
         odd.record(short, target, Command(cmd, np.zeros(1)), info, {})
+
+
+def test_the_recorder_keeps_numbers_not_objects() -> None:
+    """Signals and truth extras go into float64 buffers (issue #40: no per-step Python object
+    for the garbage collector): a missing key and a None value are NaN, a bool and an int
+    their float values, and a row with a None is not half-written."""
+    import gc
+
+    from ccm.core.records import TrialRecorder
+    from ccm.core.types import Command, Observation, StepInfo, TargetSample
+
+    z1, z2 = np.zeros(1), np.zeros(2)
+    obs = Observation(0.0, z2, z1, z2, z1, z2, z1)
+    target = TargetSample(0.0, z2, z2, z2, z1)
+    rec = TrialRecorder(2, ["a", "b", "c"], ["x"])
+    steps = [({"a": 1.0, "b": True, "c": 3}, {"x": 0.5}),
+             ({"a": 2.0, "b": None, "c": 4}, {}),
+             ({"a": np.float64(3.0), "b": 0.0}, {"x": 1.5})]  # fmt: skip
+    for sig, extra in steps:
+        rec.record(obs, target, Command(z2, z1), StepInfo(z2, z1, z2, 0, extra), sig)
+    cols = rec.arrays()
+    np.testing.assert_array_equal(cols["a"], [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(cols["b"], [1.0, np.nan, 0.0])
+    np.testing.assert_array_equal(cols["c"], [3.0, 4.0, np.nan])
+    np.testing.assert_array_equal(cols["truth_x"], [0.5, np.nan, 1.5])
+    info = StepInfo(z2, z1, z2, 0, {"x": 0.5})
+    gc.collect()
+    before = len(gc.get_objects())
+    for _ in range(2000):
+        rec.record(obs, target, Command(z2, z1), info, steps[0][0])
+    assert len(gc.get_objects()) - before < 20  # the recorder of tuples grew by 414

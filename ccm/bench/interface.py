@@ -19,7 +19,6 @@ cost nothing.
 
 from __future__ import annotations
 
-import gc
 import statistics
 import time
 from typing import Any
@@ -35,22 +34,13 @@ def interface_cost(
 ) -> float:
     """Median wall seconds of ``steps`` control steps of the interface alone (module
     docstring) for ``sim`` and ``controller``; with ``record=False`` the objects only, not
-    kept or assembled (the part a recorder of preallocated arrays would not remove). The
-    garbage collector is paused, as in :func:`ccm.experiment.trial.run_trial`.
+    kept or assembled (the part a recorder of preallocated arrays would not remove).
     ``sim.reset(seed=0)`` supplies the dimensions and the truth-extra keys."""
     obs, info = sim.reset(seed=0)
     shapes = (obs.position.shape[0], obs.orientation.shape[0], obs.torque.shape[0])
     extra_keys = sorted(info.extra)
     signals = {k: 0.0 for k in controller.signals()}
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        walls = [
-            _interface_pass(shapes, extra_keys, signals, steps, record) for _ in range(repeats)
-        ]
-    finally:
-        if was_enabled:
-            gc.enable()
+    walls = [_interface_pass(shapes, extra_keys, signals, steps, record) for _ in range(repeats)]
     return statistics.median(walls)
 
 

@@ -7,6 +7,7 @@ import json
 import operator
 import os
 import tempfile
+from array import array
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -130,11 +131,21 @@ def _values(keys: Sequence[str]) -> Callable[[Mapping[str, float]], tuple]:
     return values
 
 
-def _table(keys: Sequence[str], rows: Sequence[tuple], n: int) -> dict[str, np.ndarray]:
-    """Column ``k`` of the per-step value tuples for each of ``keys``."""
+def _extend(out: array, values: tuple) -> None:
+    """Append a step's values to ``out`` as float64 (None as NaN, as numpy converts it)."""
+    n = len(out)
+    try:
+        out.extend(values)
+    except TypeError:  # None, or a type array() does not take: numpy's float conversion
+        del out[n:]  # extend() appends one by one: undo a partial row
+        out.extend(np.array(values, dtype=float).tolist())
+
+
+def _table(keys: Sequence[str], values: array, n: int) -> dict[str, np.ndarray]:
+    """Column ``k`` of the per-step values (row after row) for each of ``keys``."""
     if not keys:
         return {}
-    table = np.array(rows, dtype=float).reshape(n, len(keys))
+    table = np.frombuffer(values, dtype=_F64).reshape(n, len(keys)).copy()
     return {k: table[:, i] for i, k in enumerate(keys)}
 
 
@@ -158,10 +169,12 @@ class TrialRecorder:
         self._rot = ROT_AXES_2D if dim == 2 else ROT_AXES_3D
         self._width = sum(len(self._rot) if is_rot else dim for _, is_rot in _VECTORS)
         self._zeros = np.zeros(dim)
-        self._vectors = bytearray()  # every row's vectors, float64, end to end
-        self._scalars: list[tuple[Any, ...]] = []  # t, segment, F_d, contacts per step
-        self._signals: list[tuple] = []
-        self._extras: list[tuple] = []
+        # every row's numbers, float64, end to end: no per-step Python object outlives
+        # record(), so the garbage collector has nothing to track (issue #40)
+        self._vectors = bytearray()
+        self._scalars = array("d")  # t, segment, F_d, contacts per step
+        self._signals = array("d")
+        self._extras = array("d")
         self._signal_values = _values(self.signal_keys)
         self._extra_values = _values(self.extra_keys)
         self._table: dict[str, np.ndarray] | None = None
@@ -189,11 +202,11 @@ class TrialRecorder:
         if row is None or len(row) != 8 * self._width:
             row = self._converted(vectors)
         self._vectors += row
-        self._scalars.append(
+        self._scalars.extend(
             (obs.t, target.segment, 0.0 if d is None else target.force_mag, info.n_contacts)
         )
-        self._signals.append(self._signal_values(signals))
-        self._extras.append(self._extra_values(info.extra))
+        _extend(self._signals, self._signal_values(signals))
+        _extend(self._extras, self._extra_values(info.extra))
         self._table = None
 
     def _converted(self, vectors: Sequence[Any]) -> bytes:
@@ -211,7 +224,7 @@ class TrialRecorder:
         return b"".join(out)
 
     def __len__(self) -> int:
-        return len(self._scalars)
+        return len(self._scalars) // 4
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The recorded columns as a dict of 1-D arrays, in column order."""
@@ -221,7 +234,7 @@ class TrialRecorder:
 
     def _assemble(self) -> dict[str, np.ndarray]:
         n = len(self)
-        scalars = np.array(self._scalars, dtype=float).reshape(n, 4)
+        scalars = np.frombuffer(self._scalars, dtype=_F64).reshape(n, 4).copy()
         out: dict[str, np.ndarray] = {"t": scalars[:, 0], "segment": scalars[:, 1]}
         block = np.frombuffer(self._vectors, dtype=_F64).reshape(n, self._width).copy()
         col = 0

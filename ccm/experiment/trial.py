@@ -7,7 +7,6 @@ the simulator's ground truth (``StepInfo``) goes to the recorder.
 
 from __future__ import annotations
 
-import gc
 import math
 from collections.abc import Callable
 from typing import Any
@@ -62,17 +61,11 @@ def run_trial(
     if expect is not None:
         expect(n_steps())
 
-    # The loop allocates many small acyclic objects, and the recorder keeps a few tuples of
-    # numbers per step; the cyclic garbage collector would rescan them ever more often, so
-    # it is paused for the trial and while the recorder builds its columns (issue #20).
-    gc_was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        rec = _closed_loop(comp, pattern, obs, info, n_steps, progress, on_step)
-        rec.arrays()
-    finally:
-        if gc_was_enabled:
-            gc.enable()
+    # no gc.disable() (issue #20 had one): the recorder keeps no per-step Python object, so
+    # the collector has nothing growing to rescan (issue #40; measured on multi_spring, fixed
+    # impedance and AVIC: the same time with the collector on)
+    rec = _closed_loop(comp, pattern, obs, info, n_steps, progress, on_step)
+    rec.arrays()
     rec.pattern_duration = float(pattern.duration)
     return rec
 
