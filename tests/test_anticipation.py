@@ -4,6 +4,8 @@ validated yet (issue #5)."""
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
@@ -37,7 +39,7 @@ def test_speed_reaches_the_approach_velocity_at_p_c(pattern) -> None:
     retimed = c.prepare(pattern, CONTACT, np.random.default_rng(0))
     (w,) = c._windows  # noqa: SLF001 - the one anticipated collision
     t_c = w.t1  # wall time at which the path reaches p_c
-    s = retimed.sample(t_c)
+    s = copy.deepcopy(retimed.sample(t_c))  # the pattern reuses its sample (issue #40)
     # inside C the target never moves faster than v_a (v_safe, 0.05 m/s), and reaches it
     speeds = [np.linalg.norm(retimed.sample(t).velocity) for t in np.linspace(t_c, w.release, 500)]
     assert max(speeds) <= 0.05 + 1e-9

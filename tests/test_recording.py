@@ -3,6 +3,7 @@ smoothing spline, the round trip of a known path, force targets and the file che
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 from pathlib import Path
@@ -122,7 +123,7 @@ def test_force_columns_become_the_hybrid_force_target(tmp_path: Path) -> None:
     frame["fx"] = 0.0
     frame["fy"] = np.where(frame["t"] - 10.0 > 2.0, -8.0, 0.0)  # pressing down after 2 s
     P = _pattern(_write(tmp_path, frame))
-    early, late = P.sample(1.0), P.sample(3.0)
+    early, late = (copy.deepcopy(P.sample(t)) for t in (1.0, 3.0))  # P reuses its sample (#40)
     assert early.force_dir is None and early.force_mag == 0.0
     np.testing.assert_allclose(late.force_dir, [0.0, -1.0], atol=1e-9)
     assert late.force_mag == pytest.approx(8.0, abs=1e-3)

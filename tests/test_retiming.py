@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 import warnings
 from collections.abc import Callable
@@ -483,7 +484,8 @@ def test_retimed_derivatives_match_finite_differences() -> None:
     rp = RetimedPattern(p, TimeWarp([(0.4, 1.0, 0.3), (1.6, 2.5, 1.5)]))
     h = 1e-5
     for t in np.linspace(0.01, rp.duration - 0.01, 700):
-        lo, mid, hi = (rp.sample(float(t + d)) for d in (-h, 0.0, h))
+        # copies: the pattern reuses its sample (issue #40)
+        lo, mid, hi = (copy.deepcopy(rp.sample(float(t + d))) for d in (-h, 0.0, h))
         # truncation h²/6 · |jerk| (≤ ~5 m/s³ → 1e-10) plus φ error 1e-14 · |P'| / h and
         # rounding eps · 0.4 m / h ≈ 1e-11; observed 2e-10
         np.testing.assert_allclose((hi.position - lo.position) / (2 * h), mid.velocity, atol=1e-8)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import Any
 
@@ -9,6 +10,7 @@ import numpy as np
 import pytest
 
 from ccm.core.errors import ConfigError
+from ccm.core.types import TargetSample
 from ccm.tasks.segments import ArcSegment, HoldSegment, LineSegment, min_jerk
 from ccm.tasks.trajectory import MotionPattern, build_pattern
 
@@ -55,6 +57,11 @@ def pattern(request: pytest.FixtureRequest) -> MotionPattern:
 
 
 # --- minimum-jerk timing -------------------------------------------------------------------
+
+
+def kept(pattern, t: float) -> TargetSample:  # noqa: ANN001
+    """A copy of ``pattern.sample(t)``: the pattern reuses its sample (issue #40)."""
+    return copy.deepcopy(pattern.sample(t))
 
 
 def test_min_jerk_boundary_values() -> None:
@@ -165,7 +172,7 @@ def test_pattern_continuity_across_boundaries(pattern: MotionPattern) -> None:
     eps = 1e-9
     for i in range(1, len(pattern)):
         tb = pattern.start_times[i]
-        before, after = pattern.sample(tb - eps), pattern.sample(tb + eps)
+        before, after = kept(pattern, tb - eps), kept(pattern, tb + eps)
         assert (before.segment, after.segment) == (i - 1, i)
         np.testing.assert_allclose(after.position, before.position, rtol=0, atol=1e-12)
         np.testing.assert_allclose(after.velocity, before.velocity, rtol=0, atol=1e-12)
@@ -183,7 +190,7 @@ def test_pattern_continuity_across_boundaries(pattern: MotionPattern) -> None:
 def test_analytic_derivatives_match_central_differences(pattern: MotionPattern) -> None:
     ts = np.linspace(H, pattern.duration - H, 2003)
     for t in ts:
-        lo, mid, hi = pattern.sample(t - H), pattern.sample(t), pattern.sample(t + H)
+        lo, mid, hi = kept(pattern, t - H), kept(pattern, t), kept(pattern, t + H)
         if not lo.segment == mid.segment == hi.segment:
             continue  # the FD stencil straddles a boundary; continuity is tested separately
         fd_vel = (hi.position - lo.position) / (2 * H)
@@ -208,7 +215,7 @@ def test_sample_many_matches_sample(pattern: MotionPattern) -> None:
 
 def test_sample_before_start_and_after_end() -> None:
     pat = pattern_2d()
-    early = pat.sample(-0.5)
+    early = kept(pat, -0.5)
     np.testing.assert_allclose(early.position, pat.start, atol=EXACT)
     assert early.segment == 0 and not early.done
     late = pat.sample(pat.duration + 1.0)
@@ -217,8 +224,9 @@ def test_sample_before_start_and_after_end() -> None:
     np.testing.assert_array_equal(late.velocity, 0.0)
     np.testing.assert_array_equal(late.acceleration, 0.0)
     assert late.t == pat.duration + 1.0
-    late.position[0] = 99.0  # samples are fresh arrays: mutating one leaves the pattern intact
-    assert pat.sample(pat.duration + 1.0).position[0] != 99.0
+    with pytest.raises(ValueError, match="read-only"):  # one sample, updated in place (#40)
+        late.position[0] = 99.0
+    assert pat.sample(0.0) is late and late.t == 0.0 and not late.done
     np.testing.assert_array_equal(late.orientation, [0.0])
     assert not pat.sample(pat.duration - 1e-6).done
     with pytest.raises(ValueError, match="number"):

@@ -17,6 +17,7 @@ import numpy as np
 
 from ccm.core.errors import ConfigError, check_finite, check_nonneg, check_positive
 from ccm.core.types import TargetSample
+from ccm.core.vector import readonly
 from ccm.tasks.smooth_step import (
     integral_scalar,
     sigma_scalar,
@@ -218,25 +219,41 @@ class RetimedPattern:
         self.duration: float = warp.inverse(pattern.duration)
         self.dim = pattern.dim
         self.start, self.end, self.orientation = pattern.start, pattern.end, pattern.orientation
+        # the one sample :meth:`sample` updates in place (issue #40), as MotionPattern's
+        self._buf = np.zeros((3, self.dim))
+        self._scratch = np.zeros(self.dim)
+        pos, vel, acc = (readonly(self._buf[i]) for i in range(3))
+        self._sample = TargetSample(0.0, pos, vel, acc, self.orientation)
 
     def sample(self, t: float) -> TargetSample:
-        """The re-timed target at wall time ``t`` [s] (``TargetSample.t`` is ``t``)."""
+        """The re-timed target at wall time ``t`` [s] (``TargetSample.t`` is ``t``); the same
+        object every call, updated in place: valid until the next call (issue #40)."""
+        buf, out = self._buf, self._sample
         if t >= self.duration:
             s = self.pattern.sample(self.pattern.duration)
-            return TargetSample(
-                t, s.position, s.velocity, s.acceleration, s.orientation,
-                s.force_dir, s.force_mag, s.segment, True,
-            )  # fmt: skip
-        phi, rho, drho, _ = self.warp.state(t)
-        s = self.pattern.sample(phi)
-        if rho == 1.0 and drho == 0.0:  # outside any change: the plan itself, no copies
-            vel, acc = s.velocity, s.acceleration
+            buf[0], buf[1], buf[2] = s.position, s.velocity, s.acceleration
+            done = True
         else:
-            vel = s.velocity * rho
-            acc = s.acceleration * (rho * rho) + s.velocity * drho
-        return TargetSample(
-            t, s.position, vel, acc, s.orientation, s.force_dir, s.force_mag, s.segment, False
+            phi, rho, drho, _ = self.warp.state(t)
+            s = self.pattern.sample(phi)
+            buf[0] = s.position
+            if rho == 1.0 and drho == 0.0:  # outside any change: the plan itself
+                buf[1], buf[2] = s.velocity, s.acceleration
+            else:  # the same operations as s.velocity * rho, s.acceleration * ρ² + s.velocity ρ'
+                np.multiply(s.velocity, rho, out=buf[1])
+                np.multiply(s.acceleration, rho * rho, out=buf[2])
+                np.multiply(s.velocity, drho, out=self._scratch)
+                buf[2] += self._scratch
+            done = False
+        out.t, out.orientation, out.force_dir, out.force_mag, out.segment, out.done = (
+            t,
+            s.orientation,
+            s.force_dir,
+            s.force_mag,
+            s.segment,
+            done,
         )
+        return out
 
     def sample_many(self, ts: Sequence[float] | np.ndarray) -> dict[str, np.ndarray]:
         """Vectorised :meth:`sample`: :meth:`MotionPattern.sample_many`'s keys at wall times,

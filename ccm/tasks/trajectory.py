@@ -97,6 +97,11 @@ class MotionPattern:
         self._final_force = (
             last.force_at(last.duration) if last.varying_force else (last.force_dir, last.force_mag)
         )
+        # the one sample :meth:`sample` updates in place (issue #40): position, velocity and
+        # acceleration are read-only views of the rows of one buffer
+        self._buf = np.zeros((3, self.dim))
+        pos, vel, acc = (readonly(self._buf[i]) for i in range(3))
+        self._sample = TargetSample(0.0, pos, vel, acc, self.orientation)
 
     def __len__(self) -> int:
         return len(self.segments)
@@ -110,15 +115,15 @@ class MotionPattern:
         """Evaluate P at time ``t`` [s] (clipped to [0, duration]; ``TargetSample.t`` is ``t``).
 
         At and after the end the final pose is returned with zero velocity and acceleration,
-        the last segment's force target and ``done=True``.
+        the last segment's force target and ``done=True``. The same object every call,
+        updated in place: valid until the next call (issue #40, :mod:`ccm.core.types`).
         """
+        buf = self._buf
         if t >= self.duration:
             n = len(self.segments) - 1
             fd, fm = self._final_force
-            pos, vel, acc = self._final
-            return TargetSample(
-                t, pos.copy(), vel.copy(), acc.copy(), self.orientation, fd, fm, n, True
-            )
+            buf[...] = self._final
+            return self._set(t, fd, fm, n, True)
         if t >= 0.0:
             t_eval = t
             i = bisect.bisect_right(self._starts, t) - 1
@@ -128,13 +133,25 @@ class MotionPattern:
         else:
             raise ValueError(f"MotionPattern.sample: t must be a number, got {t!r}")
         seg = self.segments[i]
-        out = seg._eval(t_eval - self._starts[i])
+        buf[...] = seg._eval(t_eval - self._starts[i])
         if seg.varying_force:  # a recording: the force target changes within the segment
             fd, fm = seg.force_at(t_eval - self._starts[i])
-            return TargetSample(t, out[0], out[1], out[2], self.orientation, fd, fm, i, False)
-        return TargetSample(
-            t, out[0], out[1], out[2], self.orientation, seg.force_dir, seg.force_mag, i, False
+            return self._set(t, fd, fm, i, False)
+        return self._set(t, seg.force_dir, seg.force_mag, i, False)
+
+    def _set(
+        self, t: float, force_dir: np.ndarray | None, force_mag: float, segment: int, done: bool
+    ) -> TargetSample:
+        """The sample's scalar fields and force direction, for :meth:`sample`."""
+        out = self._sample
+        out.t, out.force_dir, out.force_mag, out.segment, out.done = (
+            t,
+            force_dir,
+            force_mag,
+            segment,
+            done,
         )
+        return out
 
     def sample_many(self, ts: Sequence[float] | np.ndarray) -> dict[str, np.ndarray]:
         """Vectorised :meth:`sample` for plotting and analysis.
