@@ -5,8 +5,9 @@ across its parts: the pattern gives a :class:`~ccm.core.types.TargetSample`, the
 :class:`~ccm.core.types.Command`, the simulator an :class:`~ccm.core.types.Observation` and a
 :class:`~ccm.core.types.StepInfo` (with its truth extras), and the
 :class:`~ccm.core.records.TrialRecorder` copies the numbers of all four and the controller's
-signals, then assembles the columns. Each object still carries fresh arrays: the step types
-are made anew each step (issue #40 reuses them; the recorder already copies what it logs).
+signals, then assembles the columns. Since issue #40 the simulator and the pattern hand out
+one object each per trial, updated in place (their arrays read-only views of one buffer);
+the controller still makes a new Command every step.
 
 :func:`interface_cost` builds and records exactly those objects for a row, with the row's
 dimensions, truth-extra keys and signal keys, and no arithmetic, sampling or physics. The
@@ -27,6 +28,7 @@ import numpy as np
 
 from ccm.core.records import TrialRecorder
 from ccm.core.types import Command, Observation, StepInfo, TargetSample
+from ccm.core.vector import readonly
 
 
 def interface_cost(
@@ -51,21 +53,30 @@ def _interface_pass(
     steps: int,
     record: bool,
 ) -> float:
-    """One timed pass: build ``steps`` steps of objects, and record and assemble them."""
+    """One timed pass: update ``steps`` steps of objects in place as the simulator and the
+    pattern do (one buffer write each, the scalar fields, the truth extras), make a Command
+    as a controller does, and record and assemble them."""
     n, n_orn, n_rot = shapes
-    vec, orn, rot = (0.0,) * n, (0.0,) * n_orn, (0.0,) * n_rot
-    extra_values = (0.0,) * len(extra_keys)
+    tgt_buf, obs_buf = np.zeros((3, n)), np.zeros(3 * n + n_orn + 2 * n_rot)
+    tgt_rows = np.zeros((3, n))  # what a segment's evaluation gives
+    obs_row = (0.0,) * obs_buf.shape[0]  # the simulator's state as floats
+    o = np.cumsum([0, n, n_orn, n, n_rot, n, n_rot])
+    obs = Observation(0.0, *(readonly(obs_buf[o[i] : o[i + 1]]) for i in range(6)))
+    target = TargetSample(0.0, *(readonly(tgt_buf[i]) for i in range(3)), np.zeros(n_orn))
+    info = StepInfo(obs.force, obs.torque, obs.force, 0, dict.fromkeys(extra_keys, 0.0))
+    extra, vec, rot = info.extra, (0.0,) * n, (0.0,) * n_rot
     rec = TrialRecorder(n, list(signals), extra_keys)
     arr = np.array
     t0 = time.perf_counter()
     for k in range(steps):
         t = 1e-3 * k
-        target = TargetSample(t, arr(vec), arr(vec), arr(vec), arr(orn))
+        tgt_buf[...] = tgt_rows
+        target.t, target.force_dir, target.force_mag, target.segment = t, None, 0.0, 0
         cmd = Command(arr(vec), arr(rot))
-        obs = Observation(t, arr(vec), arr(orn), arr(vec), arr(rot), arr(vec), arr(rot))
-        info = StepInfo(
-            arr(vec), arr(rot), arr(vec), 0, dict(zip(extra_keys, extra_values, strict=True))
-        )
+        obs_buf[:] = obs_row
+        obs.t, info.n_contacts = t, 0
+        for key in extra_keys:
+            extra[key] = 0.0
         sig = dict(signals)
         if record:
             rec.record(obs, target, cmd, info, sig)

@@ -138,9 +138,9 @@ def print_loop_rows(rows: Sequence[dict[str, Any]]) -> None:
             f"{r['objects_us_per_control_step']:>7.1f}{r['ceiling_x_realtime']:>10.1f}"
         )
     print(
-        "iface: ccm's per-step interface alone (target, observation, command, truth objects,"
-        " recorded and assembled); obj: the objects without the recorder; ceiling: raw + iface,"
-        " the most a controller behind this interface can reach"
+        "iface: ccm's per-step interface alone (target, observation and truth updated in place,"
+        " a command made, recorded and assembled); obj: the objects without the recorder;"
+        " ceiling: raw + iface, the most a controller behind this interface can reach"
     )
 
 
