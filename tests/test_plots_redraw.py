@@ -145,3 +145,17 @@ def test_paper_sweeps_draw_only_the_reports_figures(smoke_run: Path, tmp_path: P
     drawn = [d.name for d in sorted((tmp_path / "smoke").iterdir()) if (d / "figures").is_dir()]
     assert drawn == ["job1"]
     assert timing["cpu_s"] > 0.0
+
+
+def test_no_stiffness_figure_without_a_stiffness() -> None:
+    """A run whose controllers log no stiffness (GP-MPC) gets no empty stiffness.png; one
+    that logs it gets the figure."""
+    from ccm.plots.adaptation import write_stiffness_figure
+
+    t = np.linspace(0.0, 1.0, 50)
+    drawn: list[str] = []
+    write_stiffness_figure({"gp_mpc": {"t": t}}, [], {}, lambda fig, name: drawn.append(name))
+    assert drawn == []
+    log = {"t": t, "stiffness_Npm": np.full(50, 300.0)}
+    write_stiffness_figure({"avic": log}, [], {}, lambda fig, name: drawn.append(name))
+    assert drawn == ["stiffness.png"]

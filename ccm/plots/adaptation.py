@@ -44,9 +44,13 @@ def write_stiffness_figure(
     save: Callable[[Any, str], None],
 ) -> None:
     """Draw ``stiffness.png`` (module docstring) through ``save(fig, name)``; ``params`` are
-    the ``metrics`` settings (the change detection's thresholds)."""
+    the ``metrics`` settings (the change detection's thresholds). Nothing when no condition
+    logs a stiffness (GP-MPC logs its impedance in ``mpc_impedance.png``): an empty axes
+    would read as a stiffness of nothing."""
     import matplotlib.pyplot as plt
 
+    if not any("stiffness_Npm" in log for log in last.values()):
+        return
     series = {k: v for k, v in _per_trial(trials).items() if len(v) > 1}
     rows = 2 if series else 1
     fig, axs = plt.subplots(rows, 1, figsize=(8, 3.5 * rows), squeeze=False)
