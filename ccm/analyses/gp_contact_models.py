@@ -345,6 +345,7 @@ def run_gp_contact_models(cfg: DictConfig, compose: Callable, out_dir: Path) -> 
                         columns = {"t": d["t"], "pos_x": d["x"], "force_x": d["f"]}
                         write_timeseries(trial_path(out_dir, name, j), columns, bits)
     write_atomic(out_dir / "gp_contact_models.md", markdown_table(conditions))
+    cpu0 = time.process_time()
     if cfg.experiment.get("figures", True):
         stiffnesses = sorted(
             {float(n.rsplit("_", 1)[1]) * 1e3 for n in curves if n.startswith("autonomous_fixed_")}
@@ -353,7 +354,8 @@ def run_gp_contact_models(cfg: DictConfig, compose: Callable, out_dir: Path) -> 
         write_gp_contact_figure(out_dir / "figures" / "gp_contact_models.png", curves, panels)
     summary = {"experiment": str(cfg.experiment.name), "status": "ok", "seed": seed,
                "conditions": conditions, "trials": trials}  # fmt: skip
-    info = {"wall_time_s": time.perf_counter() - t0, "case_s": timing}
+    info = {"wall_time_s": time.perf_counter() - t0, "case_s": timing,
+            "cpu_s": {"figures": time.process_time() - cpu0}}  # fmt: skip
     write_json_atomic(out_dir / "run_info.json", info)
     write_json_atomic(out_dir / "summary.json", summary)
     return summary

@@ -420,11 +420,13 @@ def run_h3(cfg: DictConfig, compose: Callable, out_dir: Path) -> dict[str, Any]:
         },
         "trials": rows,
     }
+    cpu0 = time.process_time()
     if cfg.experiment.get("figures", True):
         from ccm.plots.h3 import write_h3_figures
 
         write_h3_figures(out_dir / "figures", curves)
-    info = {"wall_time_s": time.perf_counter() - wall0, "collect_s": collect_s, **times}
+    info = {"wall_time_s": time.perf_counter() - wall0, "collect_s": collect_s, **times,
+            "cpu_s": {"figures": time.process_time() - cpu0}}  # fmt: skip
     write_json_atomic(out_dir / "run_info.json", info)
     write_json_atomic(out_dir / "summary.json", summary)
     return summary

@@ -275,15 +275,21 @@ def run_convexity(cfg: DictConfig, compose: Callable, out_dir: Path) -> dict[str
         conditions[key].update(saturation_fractions(study["per_point"], key))
     conditions["all_curves"] = {**across_curves(conditions), **study["fractions"],
                                 "grid_n_points": len(study["points"])}  # fmt: skip
+    cpu0 = time.process_time()
     if cfg.experiment.get("figures", True):
         figs = out_dir / "figures"
         _figure(figs / "mpc_convexity.png", curves, s)
         grid_figure(figs / "mpc_convexity_grid.png", study["points"], study["sigma_f"],
                     study["per_point"], study["relations"], study["n_grid"])  # fmt: skip
+    figures_cpu = time.process_time() - cpu0
     summary = {"experiment": str(cfg.experiment.name), "status": "ok", "seed": int(cfg.seed),
                "conditions": conditions, "trials": []}  # fmt: skip
     write_json_atomic(out_dir / "operating_points.json", _points_table(study))
-    write_json_atomic(out_dir / "run_info.json", {"wall_time_s": time.perf_counter() - t0})
+    info = {
+        "wall_time_s": time.perf_counter() - t0,
+        "cpu_s": {"figures": figures_cpu},
+    }
+    write_json_atomic(out_dir / "run_info.json", info)
     write_json_atomic(out_dir / "summary.json", summary)
     return summary
 
