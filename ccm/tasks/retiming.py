@@ -17,14 +17,13 @@ import numpy as np
 
 from ccm.core.errors import ConfigError, check_finite, check_nonneg, check_positive
 from ccm.core.types import TargetSample
-from ccm.core.vector import readonly
 from ccm.tasks.smooth_step import (
     integral_scalar,
     sigma_scalar,
     smooth_step_derivs,
     smooth_step_integral,
 )
-from ccm.tasks.trajectory import MotionPattern
+from ccm.tasks.trajectory import MotionPattern, reusable_sample
 
 
 def _parse_change(key: str, change: Any) -> tuple[float, float, float]:
@@ -219,11 +218,8 @@ class RetimedPattern:
         self.duration: float = warp.inverse(pattern.duration)
         self.dim = pattern.dim
         self.start, self.end, self.orientation = pattern.start, pattern.end, pattern.orientation
-        # the one sample :meth:`sample` updates in place (issue #40), as MotionPattern's
-        self._buf = np.zeros((3, self.dim))
+        self._buf, self._sample = reusable_sample(self.dim, self.orientation)
         self._scratch = np.zeros(self.dim)
-        pos, vel, acc = (readonly(self._buf[i]) for i in range(3))
-        self._sample = TargetSample(0.0, pos, vel, acc, self.orientation)
 
     def sample(self, t: float) -> TargetSample:
         """The re-timed target at wall time ``t`` [s] (``TargetSample.t`` is ``t``); the same

@@ -37,6 +37,15 @@ from ccm.tasks.segments import (
 )
 
 
+def reusable_sample(dim: int, orientation: np.ndarray) -> tuple[np.ndarray, TargetSample]:
+    """(buffer, sample): the one ``TargetSample`` a pattern updates in place (issue #40),
+    its position, velocity and acceleration read-only views of the buffer's three rows, which
+    only the pattern writes."""
+    buf = np.zeros((3, dim))
+    pos, vel, acc = (readonly(buf[i]) for i in range(3))
+    return buf, TargetSample(0.0, pos, vel, acc, orientation)
+
+
 class MotionPattern:
     """A target motion pattern P: consecutive segments plus a constant orientation target.
 
@@ -97,11 +106,7 @@ class MotionPattern:
         self._final_force = (
             last.force_at(last.duration) if last.varying_force else (last.force_dir, last.force_mag)
         )
-        # the one sample :meth:`sample` updates in place (issue #40): position, velocity and
-        # acceleration are read-only views of the rows of one buffer
-        self._buf = np.zeros((3, self.dim))
-        pos, vel, acc = (readonly(self._buf[i]) for i in range(3))
-        self._sample = TargetSample(0.0, pos, vel, acc, self.orientation)
+        self._buf, self._sample = reusable_sample(self.dim, self.orientation)
 
     def __len__(self) -> int:
         return len(self.segments)
