@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ccm.control.impedance import FixedImpedance
-from ccm.control.loop import damping_from_rule, impedance_term
+from ccm.control.loop import HybridLoop, damping_from_rule, impedance_term
 from ccm.control.registry import make_controller
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
@@ -142,3 +142,45 @@ def test_impedance_kernel_is_bit_identical_to_numpy(
         impedance_term(obs, target, one, one, 1.3, feedforward),
         impedance_term(obs, target, one, one, 1.3, feedforward, compiled=False),
     )
+
+
+@pytest.mark.parametrize("per_axis", [False, True])
+@pytest.mark.parametrize("feedforward", [False, True])
+def test_impedance_matrix_kernel_matches_numpy(per_axis: bool, feedforward: bool) -> None:
+    """With Λ (3, 3) and the critical rule's K_d matrix (the 3-D arm), the compiled motion term
+    equals the numpy lines to rounding (the products' sums in another order), and K_d for a
+    scalar K_p equals K_d for that K_p on every axis bit for bit."""
+    rng = np.random.default_rng(11)
+    loop = HybridLoop()
+    for _ in range(200):
+        obs = Observation(0.0, *(rng.normal(size=3) for _ in range(6)))
+        target = TargetSample(0.0, *(rng.normal(size=3) for _ in range(4)))
+        a = rng.normal(size=(3, 3))
+        lam = a @ a.T + np.eye(3)  # symmetric positive definite, kg
+        k = float(rng.uniform(1, 3000))
+        kp = rng.uniform(1, 3000, size=3) if per_axis else k
+        kd = loop.damping_for(kp, lam)
+        if not per_axis:
+            np.testing.assert_array_equal(kd, loop.damping_for(np.full(3, k), lam))
+        got = impedance_term(obs, target, kp, kd, lam, feedforward)
+        ref = impedance_term(obs, target, kp, kd, lam, feedforward, compiled=False)
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.parametrize("n", [2, 3, 6])
+def test_symmetric_root_squares_to_the_matrix(n: int) -> None:
+    """Λ^½ by Jacobi rotations (the critical rule's kernel) is symmetric, squares back to Λ and
+    equals the eigendecomposition's root, for well- and ill-conditioned Λ and a diagonal one."""
+    from ccm.control._impedance_kernels import _symmetric_root
+
+    rng = np.random.default_rng(n)
+    cases = [np.diag(rng.uniform(0.5, 5.0, n))]
+    for cond in (1.0, 1e3, 1e7):
+        q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+        cases.append((q * np.geomspace(1.0, 1.0 / cond, n)) @ q.T * 8.0)
+    for lam in cases:
+        root = _symmetric_root(lam)
+        m, v = np.linalg.eigh(lam)
+        np.testing.assert_allclose(root, root.T, atol=1e-14 * np.abs(root).max())
+        np.testing.assert_allclose(root @ root, lam, atol=1e-12 * np.abs(lam).max())
+        np.testing.assert_allclose(root, (v * np.sqrt(m)) @ v.T, atol=1e-10 * np.abs(root).max())

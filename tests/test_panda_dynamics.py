@@ -177,14 +177,15 @@ def test_the_torque_bench_times_both_paths() -> None:
 
 def test_compiled_torque_law_matches_the_numpy_law(robot: Robot) -> None:
     """:func:`ccm.sim.pybullet._kernels.torque_law` on :meth:`PandaDynamics.torque_terms`
-    against the torque law written in numpy on :meth:`PandaDynamics.compute`'s terms (the
-    form ``TorqueLoop._torques_pybullet`` uses): ``τ = Jᵀ [f; m + m_hold] + h − Jᵀ Λ J̇ q̇ +
-    N τ₀``, with a random wrench, orientation hold and posture term at every sample.
+    (with :func:`~ccm.sim.pybullet._kernels.task_space`) against the torque law written in
+    numpy on :meth:`PandaDynamics.compute`'s terms (the form ``TorqueLoop._torques_pybullet``
+    uses): ``τ = Jᵀ [f; m + m_hold] + h − Jᵀ Λ J̇ q̇ + N τ₀``, with a random
+    wrench, orientation hold and posture term at every sample.
 
     Tolerance: relative 1e-9 of max |τ|. The two compute Λ by different Cholesky codes (plain
     loops vs LAPACK), so they differ by rounding times cond(J M⁻¹ Jᵀ) (up to ~7e5 here).
     """
-    from ccm.sim.pybullet._kernels import orientation_error, torque_law
+    from ccm.sim.pybullet._kernels import orientation_error, task_space, torque_law
 
     rng = np.random.default_rng(7)
     worst = 0.0
@@ -198,7 +199,8 @@ def test_compiled_torque_law_matches_the_numpy_law(robot: Robot) -> None:
         omega, (ko, do, kn, dn) = rng.normal(size=3), rng.uniform(1.0, 50.0, 4)
         hold = np.concatenate([[ko, do], q_des, orn, omega])
         posture = np.concatenate([[kn, dn], q_rest, q, dq])
-        tau = torque_law(minv, jac, jdq, h, wrench, hold, posture, True)
+        minv_jt, _, lam = task_space(minv, jac)
+        tau = torque_law(jac, jdq, h, minv_jt, lam, wrench, hold, posture, True)
         w = wrench.copy()
         w[3:] += ko * orientation_error(q_des, orn) - do * omega
         tau0 = kn * (q_rest - q) - dn * dq

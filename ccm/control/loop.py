@@ -26,7 +26,12 @@ from typing import Any
 
 import numpy as np
 
-from ccm.control._impedance_kernels import critical_damping_matrix, impedance_kernel
+from ccm.control._impedance_kernels import (
+    critical_damping_matrix,
+    force_direction_terms,
+    impedance_kernel,
+    impedance_matrix_kernel,
+)
 from ccm.core.errors import (
     check_bool,
     check_choice,
@@ -60,8 +65,8 @@ def damping_from_rule(
     """
     if rule == "critical":
         if isinstance(mass_kg, np.ndarray):
-            kp = np.broadcast_to(np.asarray(stiffness, dtype=float), (mass_kg.shape[0],))
-            return critical_damping_matrix(mass_kg, np.ascontiguousarray(kp), float(zeta))
+            kp = float(stiffness) if np.ndim(stiffness) == 0 else np.asarray(stiffness, float)
+            return critical_damping_matrix(mass_kg, kp, float(zeta))
         return 2.0 * zeta * np.sqrt(np.asarray(stiffness) * mass_kg)
     if rule == "paper":
         return np.sqrt(np.asarray(stiffness)) / 4.0
@@ -86,7 +91,13 @@ def impedance_term(
     arithmetic in the same order, bit for bit); everything else through the numpy lines below.
     """
     n = obs.position.shape[0]
-    if _is_matrix(mass_kg) or _is_matrix(kd):
+    matrix_kd, matrix_mass = _is_matrix(kd), _is_matrix(mass_kg)
+    if compiled and matrix_kd and matrix_mass and _kernel_gain(kp, n):
+        return impedance_matrix_kernel(
+            target.position, obs.position, target.velocity, obs.lin_vel, target.acceleration,
+            kp, kd, mass_kg, inertia_feedforward,
+        )  # fmt: skip
+    if matrix_mass or matrix_kd:
         u = kp * (target.position - obs.position)
         e_vel = target.velocity - obs.lin_vel
         u += kd @ e_vel if _is_matrix(kd) else kd * e_vel
@@ -123,7 +134,9 @@ def mean_gain(k: np.ndarray | float) -> float:
     if isinstance(k, float):  # np.float64 too: the planar per-step path, no array calls
         return float(k)
     a = np.asarray(k, dtype=float)
-    return float(np.mean(np.diagonal(a) if a.ndim == 2 else a))
+    if a.ndim == 2:
+        return float(a.trace()) / a.shape[0]
+    return float(a.sum()) / a.shape[0]
 
 
 def _kernel_gain(k: object, n: int) -> bool:
@@ -248,13 +261,14 @@ class HybridLoop:
             self.force_control = 0.0
             self.last_force_loop = self.zero
             return u_motion, self.zero
-        u_motion = u_motion - d * float(d @ u_motion)
-        f_contact = -float(d @ obs.force)  # force the end-effector exerts on the environment
+        # P_m u, and the measured force and velocity along d
+        u_motion, f_along, v_along = force_direction_terms(u_motion, d, obs.force, obs.lin_vel)
+        f_contact = -f_along  # force the end-effector exerts on the environment
         err = target.force_mag - f_contact
         lim = self.force_integral_limit_N / self.force_ki if self.force_ki > 0 else 0.0
         self._force_int = min(max(self._force_int + err * self.control_dt, -lim), lim)
         mag = target.force_mag + self.force_kp * err + self.force_ki * self._force_int
-        u_force = d * mag - d * (self.force_damping * float(d @ obs.lin_vel))
+        u_force = d * mag - d * (self.force_damping * v_along)
         self.force_error_N = err
         self.force_control = 1.0
         self.last_force_loop = u_force

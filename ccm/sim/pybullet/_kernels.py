@@ -1,7 +1,9 @@
 """Compiled per-physics-step math of the PyBullet backend (issue #20).
 
-Two kernels, one call each per physics step of :class:`ccm.sim.pybullet.backend.PyBullet3D`:
+Per physics step of :class:`ccm.sim.pybullet.backend.PyBullet3D`:
 
+* :func:`task_space`: M⁻¹ Jᵀ, the mobility J M⁻¹ Jᵀ and Λ at the new joint state, shared by
+  the observation's inertia (:func:`translational_inertia`) and the next torques;
 * :func:`torque_law`: the Panda's joint torques from Pinocchio's terms (the module docstring
   of :mod:`ccm.sim.pybullet.dynamics`),
   ``τ = Jᵀ [f; m + m_hold] + h − Jᵀ Λ J̇ q̇ + N τ₀`` with ``Λ = (J M⁻¹ Jᵀ)⁻¹`` and
@@ -80,11 +82,48 @@ def _task_inertia(a: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def task_space(minv: np.ndarray, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(M⁻¹ Jᵀ, J M⁻¹ Jᵀ, Λ)`` at one joint state: the operational-space terms that the
+    torque law and the observation's inertia share, with ``Λ = (J M⁻¹ Jᵀ)⁻¹``.
+
+    Args:
+        minv: M⁻¹ (7, 7); jac: J (6, 7).
+    """
+    nj = jac.shape[1]
+    minv_jt = np.zeros((nj, 6))
+    for i in range(nj):
+        for r in range(6):
+            s = 0.0
+            for k in range(nj):
+                s += minv[i, k] * jac[r, k]
+            minv_jt[i, r] = s
+    mob = np.zeros((6, 6))
+    for r in range(6):
+        for c in range(6):
+            s = 0.0
+            for k in range(nj):
+                s += jac[r, k] * minv_jt[k, c]
+            mob[r, c] = s
+    return minv_jt, mob, _task_inertia(mob)
+
+
+@njit(cache=True)
+def translational_inertia(mob: np.ndarray, lam: np.ndarray, locked: bool) -> np.ndarray:
+    """The tool point's translational inertia (3, 3) [kg]: Λ's translational block when the
+    rotation is held (``locked``), else ``(J_v M⁻¹ J_vᵀ)⁻¹`` from the mobility's block
+    (``TorqueLoop.translational_inertia`` says which applies when)."""
+    if locked:
+        return lam[:3, :3].copy()
+    return _task_inertia(np.ascontiguousarray(mob[:3, :3]))
+
+
+@njit(cache=True)
 def torque_law(
-    minv: np.ndarray,
     jac: np.ndarray,
     jdq: np.ndarray,
     h: np.ndarray,
+    minv_jt: np.ndarray,
+    lam: np.ndarray,
     wrench: np.ndarray,
     hold: np.ndarray,
     posture: np.ndarray,
@@ -93,7 +132,8 @@ def torque_law(
     """Joint torques ``τ = Jᵀ (W + [0; m_hold]) + h − Jᵀ Λ J̇ q̇ + N τ₀`` (module docstring).
 
     Args:
-        minv: M⁻¹ (7, 7); jac: J (6, 7); jdq: J̇ q̇ (6,); h: gravity + Coriolis torques (7,).
+        jac: J (6, 7); jdq: J̇ q̇ (6,); h: gravity + Coriolis torques (7,).
+        minv_jt, lam: M⁻¹ Jᵀ (7, 6) and Λ (6, 6) of :func:`task_space`.
         wrench: commanded task-space wrench ``[f; m]`` (6,).
         hold: the orientation hold ``(K_o, D_o, q_des (4), q (4), ω (3))`` (13,): the moment
             ``m_hold = K_o e_R(q_des, q) − D_o ω`` is added to ``m`` if either gain is non-zero.
@@ -106,27 +146,9 @@ def torque_law(
     if hold[0] != 0.0 or hold[1] != 0.0:
         w[3:] += hold[0] * orientation_error(hold[2:6], hold[6:10]) - hold[1] * hold[10:13]
     tau = _mat_vec(jac.T, w) + h
-    nullspace = posture[0] != 0.0 or posture[1] != 0.0
-    if not (coriolis or nullspace):
-        return tau
-    minv_jt = np.zeros((nj, 6))  # M⁻¹ Jᵀ
-    for i in range(nj):
-        for r in range(6):
-            s = 0.0
-            for k in range(nj):
-                s += minv[i, k] * jac[r, k]
-            minv_jt[i, r] = s
-    mob = np.zeros((6, 6))  # J M⁻¹ Jᵀ
-    for r in range(6):
-        for c in range(6):
-            s = 0.0
-            for k in range(nj):
-                s += jac[r, k] * minv_jt[k, c]
-            mob[r, c] = s
-    lam = _task_inertia(mob)
     if coriolis:
         tau -= _mat_vec(jac.T, _mat_vec(lam, jdq))
-    if nullspace:  # N τ₀ = τ₀ − Jᵀ Λ (M⁻¹ Jᵀ)ᵀ τ₀
+    if posture[0] != 0.0 or posture[1] != 0.0:  # N τ₀ = τ₀ − Jᵀ Λ (M⁻¹ Jᵀ)ᵀ τ₀
         q, dq = posture[2 + nj : 2 + 2 * nj], posture[2 + 2 * nj :]
         tau0 = posture[0] * (posture[2 : 2 + nj] - q) - posture[1] * dq
         tau += tau0 - _mat_vec(jac.T, _mat_vec(lam, _mat_vec(minv_jt.T, tau0)))

@@ -116,6 +116,7 @@ class PyBullet3D(Simulator):
         self._tool_inertia = np.diag(box_inertia(tool.mass, tool.size))  # tool frame [kg m²]
         #: the tool's centre-of-mass twist at the previous physics step (NaN: none yet)
         self._twist_prev = np.full(6, np.nan)
+        self._wrench = np.zeros(6)  # the command held this control step: [f; m]
         self._client: int | None = None
         self._p: Any = None
         self._robot = -1
@@ -223,7 +224,8 @@ class PyBullet3D(Simulator):
                 f"command must have force (3,) and torque (3,), got {np.shape(f_cmd)}, "
                 f"{np.shape(t_cmd)}"
             )
-        wrench = np.concatenate([np.asarray(f_cmd, float), np.asarray(t_cmd, float)])
+        wrench = self._wrench  # the torque law reads it during this call only
+        wrench[:3], wrench[3:] = f_cmd, t_cmd
         if not all_finite(wrench):
             raise SimulationDiverged(
                 f"non-finite command force={np.asarray(f_cmd).tolist()} "

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.sim.pybullet._kernels import torque_law
+from ccm.sim.pybullet._kernels import task_space, torque_law, translational_inertia
 from ccm.sim.pybullet.dynamics import PandaDynamics, robot_dynamics
 from ccm.sim.pybullet.robot import (
     N_ARM,
@@ -91,22 +91,24 @@ class TorqueLoop:
         ``orn`` (x, y, z, w) and angular velocity ``omega``."""
         if self.dynamics is None:
             return self._torques_pybullet(wrench, q, dq, orn, omega)
-        minv, jac, jdq, h = self._pinocchio_terms(q, dq)
+        jac, jdq, h, minv_jt, _, lam = self._pinocchio_terms(q, dq)
         self._hold[6:10] = orn
         self._hold[10:] = omega
         self._posture[2 + N_ARM : 2 + 2 * N_ARM] = q
         self._posture[2 + 2 * N_ARM :] = dq
         return torque_law(
-            minv, jac, jdq, h, wrench, self._hold, self._posture,
+            jac, jdq, h, minv_jt, lam, wrench, self._hold, self._posture,
             self.config.task_coriolis_compensation,
         )  # fmt: skip
 
     def _pinocchio_terms(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, ...]:
-        """``(M⁻¹, J, J̇ q̇, h)`` at ``(q, q̇)``, computed once per joint state (the array
-        object ``q`` that the backend reads after each physics step)."""
+        """``(J, J̇ q̇, h, M⁻¹ Jᵀ, J M⁻¹ Jᵀ, Λ)`` at ``(q, q̇)``, computed once per joint state
+        (the array object ``q`` that the backend reads after each physics step): the
+        observation's inertia and the next physics step's torques share them."""
         if q is not self._terms_q:
             assert self.dynamics is not None
-            self._terms = self.dynamics.torque_terms(q, dq)
+            minv, jac, jdq, h = self.dynamics.torque_terms(q, dq)
+            self._terms = (jac, jdq, h, *task_space(minv, jac))
             self._terms_q = q
         return self._terms
 
@@ -124,14 +126,14 @@ class TorqueLoop:
         1.4 m/s² averaged over 100 ms, on the way to the locked 0.57 m/s²). Without the hold
         the moment is zero and the inertia is (J_v M⁻¹ J_vᵀ)⁻¹.
         """
-        if self.dynamics is not None:
-            minv, jac = self._pinocchio_terms(q, dq)[:2]
-            mobility = jac @ minv @ jac.T  # J M⁻¹ Jᵀ, (6, 6)
-        else:
-            jac, _, _, minv_jt, _ = self.model_terms(q, dq, True)
-            mobility = jac @ minv_jt
         cfg = self.config
-        if cfg.orientation_stiffness > 0.0 or cfg.orientation_damping > 0.0:
+        locked = cfg.orientation_stiffness > 0.0 or cfg.orientation_damping > 0.0
+        if self.dynamics is not None:
+            mob, lam = self._pinocchio_terms(q, dq)[4:]
+            return translational_inertia(mob, lam, locked)
+        jac, _, _, minv_jt, _ = self.model_terms(q, dq, True)
+        mobility = jac @ minv_jt
+        if locked:
             return np.linalg.inv(mobility)[:3, :3]
         return np.linalg.inv(mobility[:3, :3])
 
