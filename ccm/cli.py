@@ -114,7 +114,40 @@ def cmd_list(args: Sequence[str] = ()) -> int:
                 line = str(exc) if isinstance(exc, ConfigError) else yaml_line(exc)
                 text = f"(unreadable: {line})"
             print(f"  {opt:<28} {text}")
+    broken += list_plugins()
     return EXIT_CONFIG if broken else 0
+
+
+def list_plugins() -> int:
+    """Print the plugins that installed packages register (``ccm.controllers``,
+    ``ccm.simulators`` entry points), each loaded and checked; return how many are broken
+    (each named with its one-line reason)."""
+    from ccm.control.registry import CONTROLLERS, controller_class
+    from ccm.core import plugins
+    from ccm.core.errors import ConfigError
+    from ccm.sim import BACKENDS, sim_class
+
+    checks = {
+        "controller": (CONTROLLERS, lambda name: controller_class({"type": name})),
+        "sim": (BACKENDS, lambda name: sim_class({"name": name})),
+    }
+    broken = 0
+    for kind, group in plugins.GROUPS.items():
+        builtins, load = checks[kind]
+        found = plugins.plugin_entry_points(kind)
+        print(f"{kind} plugins (entry points {group}):" + ("" if found else " none installed"))
+        for name, target in found.items():
+            if name in builtins:
+                broken += 1
+                print(f"  {name:<28} {target}: not used, {name!r} is a built-in {kind}")
+                continue
+            try:
+                load(name)
+                print(f"  {name:<28} {target}")
+            except ConfigError as exc:
+                broken += 1
+                print(f"  {name:<28} {target}: broken: {exc}")
+    return broken
 
 
 def _fail(message: str, code: int) -> int:

@@ -146,10 +146,10 @@ def test_the_parts_name_their_keys_under_the_callers_prefix(kwargs: dict, key: s
     assert err.value.key == key
 
 
-def test_from_config_refuses_modes_without_algorithm_1_and_unknown_keys() -> None:
-    assert _config_refusal(AVIC.from_config, {"type": "avic", "modes": {}}, "arm") == (
-        "arm.modes: needs type avic_modes (Algorithm 1), got 'avic'"
-    )
+def test_a_modes_block_adds_algorithm_1_and_unknown_keys_are_refused() -> None:
+    """``avic_modes`` is a preset (a config with a ``modes`` block), not a class alias."""
+    assert AVIC.from_config({"type": "avic", "modes": {}}, "arm").modes is not None
+    assert AVIC.from_config({"type": "avic"}, "arm").modes is None
     line = _config_refusal(AVIC.from_config, {"type": "avic", "colour": 1}, "arm")
     assert line.startswith("arm.colour: ")
 

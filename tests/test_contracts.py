@@ -67,14 +67,24 @@ def test_simulator_contract(composer, backend: str) -> None:
     assert sim.dim in (2, 3)
 
 
+#: the ``plugin`` config is a template for a controller from outside ccm: checked here with
+#: the plugin of ``tests/plugins`` (issue #41)
+PLUGIN = "controller._target_=tests.plugins.controllers:PlainPD"
+
+
 def controllers() -> list[str]:
     return group_options("controller")
+
+
+def chosen(name: str) -> list[str]:
+    """The overrides that select controller config ``name`` (the plugin with its target)."""
+    return [f"controller={name}", *([PLUGIN] if name == "plugin" else [])]
 
 
 @pytest.mark.parametrize("name", controllers())
 def test_controller_contract(composer, name: str) -> None:
     """Shapes and signal keys over 300 steps (2D), and the learned-state JSON round trip."""
-    cfg = composer([f"controller={name}", "task=multi_spring"])
+    cfg = composer([*chosen(name), "task=multi_spring"])
     comp = build_components(cfg)
     try:
         run_steps(comp, seed=1)
@@ -119,7 +129,7 @@ MORE = [
 def test_a_controller_keeps_no_view_of_the_step_objects(
     composer, name: str, where: list[str], steps: int
 ) -> None:
-    cfg = composer([f"controller={name}", *where])
+    cfg = composer([*chosen(name), *where])
     comp = build_components(cfg)
     try:
         check_keeps_no_views(

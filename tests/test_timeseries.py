@@ -1,5 +1,5 @@
 """Trial time series on disk (issue #19): Parquet round trip, ``experiment.timeseries``
-(which trials are written, validation), ``ccm.load_run`` on a real run, and the rail figure
+(which trials are written, validation), ``load_run`` on a real run, and the rail figure
 reading the Parquet files back."""
 
 from __future__ import annotations
@@ -12,7 +12,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-import ccm
 from ccm.core.errors import ConfigError
 from ccm.core.timeseries import (
     check_bits,
@@ -25,6 +24,7 @@ from ccm.core.timeseries import (
 from ccm.experiment.components import check_experiment
 from ccm.experiment.runner import run_experiment
 from ccm.plots.rail import write_rail_figure
+from ccm.reporting.load import load_run
 
 CCM = str(Path(sys.executable).parent / "ccm")
 #: a quick smoke run: two conditions, trials of 0.05 s, no figures
@@ -160,7 +160,7 @@ def test_a_bad_timeseries_value_is_a_one_line_error(composer, tmp_path: Path) ->
 
 def test_load_run_on_a_small_run(composer, tmp_path: Path) -> None:
     summary = _run(composer, tmp_path, "experiment.trials=3")
-    run = ccm.load_run(tmp_path)
+    run = load_run(tmp_path)
     assert run.summary == summary
     assert list(run.conditions.index) == ["fixed_low", "fixed_high"]
     assert run.conditions.loc["fixed_high", "rms_tracking_error_m"] == pytest.approx(
@@ -175,14 +175,14 @@ def test_load_run_on_a_small_run(composer, tmp_path: Path) -> None:
     assert set(ts["phase"]) == {"main"}
     one = ts[(ts["condition"] == "fixed_low") & (ts["trial"] == 3)]
     np.testing.assert_array_equal(one["t"].to_numpy(), np.arange(len(one)) * one["t"].iloc[1])
-    assert ccm.load_run(tmp_path, timeseries=False).timeseries.empty
+    assert load_run(tmp_path, timeseries=False).timeseries.empty
 
 
 def test_load_run_needs_a_summary(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match="holds no summary.json"):
-        ccm.load_run(tmp_path)
+        load_run(tmp_path)
     with pytest.raises(FileNotFoundError, match="does not exist"):
-        ccm.load_run(tmp_path / "missing")
+        load_run(tmp_path / "missing")
 
 
 def test_rail_figure_reads_the_parquet_files(tmp_path: Path) -> None:

@@ -46,7 +46,7 @@ from ccm.core.errors import ConfigError, SimulationDiverged, to_plain
 from ccm.core.records import atomic_path
 from ccm.core.types import TargetSample
 from ccm.experiment.components import check_dims
-from ccm.sim import backend, make_sim
+from ccm.sim import make_sim, sim_class
 from ccm.sim.base import check_state_finite
 from ccm.tasks.task import load_task
 
@@ -120,7 +120,7 @@ def record_demo(cfg: DictConfig, seed: int) -> dict[str, np.ndarray]:
     """Run one demonstration; returns its columns (see the module docstring)."""
     control_dt = float(cfg.sim.dt) * int(cfg.sim.control_decimation)
     planned = load_task(cfg.task, control_dt)
-    check_dims(planned.dim, backend(cfg.sim.get("name")).dim, cfg)
+    check_dims(planned.dim, sim_class(to_plain(cfg.sim, "sim")).dim, cfg)
     scene = to_plain(cfg.task.scene, "task.scene")
     if scene.get("human") is not None:
         raise ConfigError("task.scene.human", "the task has a simulated human already")

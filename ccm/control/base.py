@@ -9,6 +9,7 @@ from typing import Any, Self
 import numpy as np
 
 from ccm.core.errors import ConfigError, constructor_kwargs
+from ccm.core.plugins import accepts_key
 from ccm.core.protocols import Pattern
 from ccm.core.types import Command, Observation, TargetSample
 
@@ -27,8 +28,13 @@ class Controller(ABC):
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> Self:
         """Build from a plain ``controller`` config mapping: every key must be a constructor
-        argument (``type``/``description`` are bookkeeping and ignored)."""
-        return cls(**constructor_kwargs(cls, cfg, key), key=key)  # type: ignore[call-arg]
+        argument (``type``, ``_target_`` and ``description`` are bookkeeping and ignored).
+        ``key``, the config prefix that errors name, is passed only to a constructor that
+        takes it: a plugin's needs no ccm-specific parameter."""
+        kwargs = constructor_kwargs(cls, cfg, key)
+        if accepts_key(cls):
+            kwargs["key"] = key
+        return cls(**kwargs)
 
     @property
     def type_name(self) -> str | None:

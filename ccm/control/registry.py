@@ -1,33 +1,34 @@
-"""Controller registry: the ``type`` field of a ``controller`` config picks the class."""
+"""Controller registry: the ``type`` (or ``_target_``) of a ``controller`` config picks the
+class (:mod:`ccm.core.plugins`: built-ins, installed plugins and import paths)."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from typing import Any
 
-from ccm.control.adaptive.anticipation import AnticipatoryAVIC
-from ccm.control.adaptive.avic import AVIC
 from ccm.control.base import Controller
-from ccm.control.baselines.aic import AIC
-from ccm.control.baselines.bac import BAC
-from ccm.control.baselines.mrac import MRAC
-from ccm.control.impedance import FixedImpedance
-from ccm.control.mpc.gp_mpc import GPMPC
-from ccm.core.errors import check_choice
+from ccm.core.plugins import resolve_class
 
-CONTROLLERS: dict[str, type[Controller]] = {
-    "fixed_impedance": FixedImpedance,
-    "mrac": MRAC,
-    "aic": AIC,
-    "bac": BAC,
-    "avic": AVIC,
-    "avic_modes": AVIC,  # with Algorithm 1 (its modes block): AVIC.from_config
-    "avic_anticipation": AnticipatoryAVIC,
-    "gp_mpc": GPMPC,
+#: built-in controllers: ``type`` -> "module:Class", imported when used. Presets of a class
+#: (AVIC with Algorithm 1: ``configs/controller/avic_modes.yaml``) are configs, not names.
+CONTROLLERS: dict[str, str] = {
+    "fixed_impedance": "ccm.control.impedance:FixedImpedance",
+    "mrac": "ccm.control.baselines.mrac:MRAC",
+    "aic": "ccm.control.baselines.aic:AIC",
+    "bac": "ccm.control.baselines.bac:BAC",
+    "avic": "ccm.control.adaptive.avic:AVIC",
+    "avic_anticipation": "ccm.control.adaptive.anticipation:AnticipatoryAVIC",
+    "gp_mpc": "ccm.control.mpc.gp_mpc:GPMPC",
 }
 
 
+def controller_class(cfg: Mapping[str, Any], key: str = "controller") -> type[Controller]:
+    """The class of a controller config: its ``_target_`` import path, or its ``type`` (a
+    built-in or a ``ccm.controllers`` entry point)."""
+    return resolve_class("controller", cfg, "type", CONTROLLERS, key, Controller)[0]
+
+
 def make_controller(cfg: Mapping[str, Any], key: str = "controller") -> Controller:
-    """Build a controller from a plain config mapping with a ``type`` field."""
-    kind = check_choice(f"{key}.type", cfg.get("type"), CONTROLLERS)
-    return CONTROLLERS[kind].from_config(cfg, key=key)
+    """Build a controller from a plain config mapping (:func:`controller_class`; the class's
+    ``from_config`` gets the rest of the mapping)."""
+    return controller_class(cfg, key).from_config(cfg, key=key)

@@ -171,16 +171,20 @@ def check_vector(key: str, value: Any, dim: int | Sequence[int]) -> np.ndarray:
     return arr
 
 
+#: fields of a component config that name or describe it, never constructor arguments
+BOOKKEEPING_KEYS = ("type", "_target_", "name", "description")
+
+
 def constructor_kwargs(cls: type, cfg: Any, key: str) -> dict[str, Any]:
     """Keyword arguments for ``cls(...)`` from a config mapping, rejecting unknown keys.
 
-    ``type`` and ``description`` are bookkeeping fields of every component config and are
-    dropped; ``key`` is reserved for the error prefix.
+    ``type``, ``_target_``, ``name`` (a preset's) and ``description`` are bookkeeping fields
+    of a component config and are dropped; ``key`` is reserved for the error prefix.
     """
     import inspect
 
     allowed = [p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "key")]
-    out = {k: v for k, v in dict(cfg).items() if k not in ("type", "description")}
+    out = {k: v for k, v in dict(cfg).items() if k not in BOOKKEEPING_KEYS}
     check_keys(key, out, allowed)
     return out
 

@@ -33,7 +33,7 @@ from ccm.core.errors import (
 from ccm.core.timeseries import FLOAT32_BITS, check_bits, check_mode
 from ccm.experiment.learned_state import load_states, save_states
 from ccm.plots import animate
-from ccm.sim import BACKENDS, backend, make_sim
+from ccm.sim import BACKENDS, backend, make_sim, sim_class
 from ccm.sim.base import Simulator
 from ccm.tasks.task import Task, load_task
 
@@ -130,7 +130,11 @@ def resolve_conditions(cfg: DictConfig, compose: ComposeFn) -> list[Condition]:
         k: v for k, v in (to_plain(cfg.experiment.get("conditions")) or {}).items() if v is not None
     }
     if not spec:
-        return [Condition(name=str(cfg.controller.get("type", "default")), cfg=cfg, overrides=[])]
+        # named after the controller: its preset's name where it has one, else its type
+        ctrl = cfg.controller
+        name = ctrl.get("name") or ctrl.get("type") or ctrl.get("_target_") or "default"
+        return [Condition(name=str(name).rpartition(".")[2].rpartition(":")[2], cfg=cfg,
+                          overrides=[])]  # fmt: skip
     out = []
     for name, overrides in spec.items():
         key = f"experiment.conditions.{name}"
@@ -227,7 +231,7 @@ def build_sim_task(cfg: DictConfig) -> tuple[Simulator, Task]:
     if orientation and cfg.task.get("dim") == 3:  # the 3D start pose includes the tool's quaternion
         start += list(orientation)
     # before the scene is parsed: a 2-D scene read as a 3-D one fails on an "unknown key"
-    check_dims(cfg.task.get("dim"), backend(cfg.sim.get("name")).dim, cfg)
+    check_dims(cfg.task.get("dim"), sim_class(to_plain(cfg.sim)).dim, cfg)
     sim = make_sim(to_plain(cfg.sim), to_plain(cfg.task.get("scene", {})), start)
     task = load_task(cfg.task, sim.control_dt)
     check_dims(task.dim, sim.dim, cfg)

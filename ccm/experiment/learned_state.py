@@ -27,13 +27,15 @@ STATE_VERSION = 1
 
 
 def controller_type(controller: Controller) -> str:
-    """The registry name (``controller.type``) of a controller."""
+    """The registry name (``controller.type``) of a controller; a plugin's import path."""
     if controller.type_name is not None:
         return controller.type_name
-    for name, cls in CONTROLLERS.items():
-        if type(controller) is cls:
+    cls = type(controller)
+    path = f"{cls.__module__}:{cls.__qualname__}"
+    for name, target in CONTROLLERS.items():
+        if target == path:
             return name
-    return type(controller).__name__
+    return path  # a plugin: its import path
 
 
 def save_states(state_dir: Path, items: Iterable[tuple[str, Controller, int]]) -> None:

@@ -1,9 +1,9 @@
-"""``ccm.load_run``: one run directory as pandas DataFrames, for analysis in a notebook or
+"""``load_run``: one run directory as pandas DataFrames, for analysis in a notebook or
 script (issue #19; README, "Analysing a run")::
 
-    import ccm
+    from ccm.reporting.load import load_run
 
-    run = ccm.load_run("outputs/smoke/2026-12-03_08-00-00-000000")
+    run = load_run("outputs/smoke/2026-12-03_08-00-00-000000")
     run.conditions  # one row per condition (index): the summary's metrics (last phase)
     run.trials      # one row per trial: condition, phase, trial, seed, then its metrics
     run.timeseries  # long: condition, phase, trial, then one row per control step

@@ -12,6 +12,10 @@ import numpy as np
 from ccm.core.errors import check_int_positive, check_positive
 from ccm.core.types import Command, Observation, StepInfo
 
+#: keys of the ``sim`` group that are not a backend's settings: its name or import path
+#: (:func:`ccm.sim.sim_class`), its description, and the nominal mass the controllers read
+OTHER_SIM_KEYS = ("name", "_target_", "description", "nominal_mass_kg")
+
 
 class Simulator(ABC):
     """A world with one end-effector driven by a task-space wrench.

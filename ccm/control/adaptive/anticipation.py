@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from ccm.control.adaptive.anticipation_settings import AnticipationSettings
-from ccm.control.adaptive.avic import AVIC, MODAL_TYPE
+from ccm.control.adaptive.avic import AVIC
 from ccm.control.adaptive.contact_events import ContactEvents, TransitionWindow
 from ccm.control.adaptive.replan import plan_passes, rate_changes, windows_ahead
 from ccm.control.adaptive.transition import KINDS, transition_force
@@ -109,9 +109,9 @@ class AnticipatoryAVIC(ContactEvents, Controller):
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> AnticipatoryAVIC:
         """The ``anticipation`` block; everything else builds the base :class:`AVIC` with
-        Algorithm 1 (``type: avic_modes``)."""
+        Algorithm 1 (its ``modes`` block, defaults where absent)."""
         rest = {k: v for k, v in cfg.items() if k != "anticipation"}
-        base = AVIC.from_config({**rest, "type": MODAL_TYPE}, key)
+        base = AVIC.from_config({**rest, "modes": rest.get("modes") or {}}, key)
         return cls(anticipation=cfg.get("anticipation"), base=base)
 
     def reset(self, dim: int, control_dt: float) -> None:

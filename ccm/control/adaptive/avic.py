@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any, Self
+from typing import Any
 
 import numpy as np
 
@@ -58,7 +58,6 @@ from ccm.core.errors import (
     check_choice,
     check_nonneg,
     check_positive,
-    constructor_kwargs,
 )
 from ccm.core.filters import first_order_alpha
 from ccm.core.types import Command, Observation, TargetSample
@@ -66,7 +65,7 @@ from ccm.learn.mixtures.forecast import ForecastBuffer, horizon_steps
 from ccm.learn.mixtures.forward_model import N_STATE, magnitudes, make_forward_model
 
 FF_DIRECTIONS = ("against_motion", "measured", "along_motion")
-MODAL_TYPE = "avic_modes"  # the registry name of AVIC with Algorithm 1
+MODAL_TYPE = "avic_modes"  # the learned-state name of AVIC with Algorithm 1 (a modes block)
 
 
 class AVIC(Controller):
@@ -131,22 +130,10 @@ class AVIC(Controller):
         self.model = make_forward_model(dict(forward_model or {}), f"{key}.forward_model")
         self.modes = None if modes is None else ContactModes(modes, self.model, forward_model, key)
 
-    @classmethod
-    def from_config(cls, cfg: Mapping[str, Any], key: str = "controller") -> Self:
-        """AVIC's arguments (unknown keys rejected). ``type: avic_modes`` holds Algorithm 1
-        (its ``modes`` block, defaults where absent); ``type: avic`` takes no ``modes``."""
-        args = dict(cfg)
-        if args.get("type") == MODAL_TYPE:
-            args["modes"] = args.get("modes") or {}
-        elif "modes" in args:
-            raise ConfigError(
-                f"{key}.modes", f"needs type {MODAL_TYPE} (Algorithm 1), got {args.get('type')!r}"
-            )
-        return cls(**constructor_kwargs(cls, args, key), key=key)
-
     @property
     def type_name(self) -> str:
-        """The registry name: ``avic``, or ``avic_modes`` with Algorithm 1."""
+        """The name a saved learned state records: ``avic``, or ``avic_modes`` with
+        Algorithm 1 (a ``modes`` block), so that a state is loaded only into its kind."""
         return "avic" if self.modes is None else MODAL_TYPE
 
     def reset(self, dim: int, control_dt: float) -> None:

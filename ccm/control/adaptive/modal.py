@@ -1,7 +1,7 @@
 """Contact-mode detection and one forward model per mode (seed A §3.2, Algorithm 1).
 
 :class:`ContactModes` is a part that the controller of Eq. 4a–4c
-(:class:`ccm.control.adaptive.avic.AVIC`, ``type: avic_modes``) holds as its ``modes``
+(:class:`ccm.control.adaptive.avic.AVIC` with a ``modes`` block) holds as its ``modes``
 member: the controller then runs with the forward model of the *current contact mode*.
 Algorithm 1 of seed A adds, every control step:
 

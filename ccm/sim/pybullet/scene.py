@@ -27,18 +27,13 @@ from ccm.core.errors import (
     to_plain,
 )
 from ccm.core.fields import checked, field_values, nested, one_of, vector
+from ccm.sim.base import OTHER_SIM_KEYS
 from ccm.sim.hand import HandSpec
 from ccm.sim.sensor import SensorConfig
 
 #: Franka's documented "ready" pose, used as IK seed and default rest posture [rad]
 PANDA_READY = (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4)
 
-#: keys of the ``sim`` group that are not backend settings
-_OTHER_SIM_KEYS = (
-    "name",
-    "description",
-    "nominal_mass_kg",  # read by controllers (configs/controller/*.yaml), not the simulator
-)
 PATCH_MODES = ("friction_map", "footprint", "boxes")
 #: where the torque loop's model terms come from (``PyBullet3DConfig.dynamics``)
 DYNAMICS = ("pinocchio", "pybullet")
@@ -128,7 +123,7 @@ class PyBullet3DConfig:
     @classmethod
     def from_mapping(cls, cfg: Any, prefix: str = "sim") -> PyBullet3DConfig:
         """Parse the ``sim`` config group; errors name keys as ``sim.<field>``."""
-        values, d = field_values(cls, cfg, prefix, extra=_OTHER_SIM_KEYS)
+        values, d = field_values(cls, cfg, prefix, extra=OTHER_SIM_KEYS)
         if "name" in d and d["name"] != "pybullet3d":
             raise ConfigError(f"{prefix}.name", f"must be 'pybullet3d', got {d['name']!r}")
         return cls(**values)

@@ -8,14 +8,8 @@ from typing import Any
 
 from ccm.core.errors import ConfigError, check_bool, check_int_positive, check_positive
 from ccm.core.fields import checked, field_values, nested
+from ccm.sim.base import OTHER_SIM_KEYS
 from ccm.sim.sensor import SensorConfig
-
-#: keys of the ``sim`` group that are not backend settings
-_OTHER_SIM_KEYS = (
-    "name",
-    "description",
-    "nominal_mass_kg",  # read by controllers (configs/controller/*.yaml), not the simulator
-)
 
 
 @dataclass(frozen=True)
@@ -46,7 +40,7 @@ class Pymunk2DConfig:
     @classmethod
     def from_mapping(cls, cfg: Any, prefix: str = "sim") -> Pymunk2DConfig:
         """Parse the ``sim`` config group; errors name keys as ``sim.<field>``."""
-        values, d = field_values(cls, cfg, prefix, extra=_OTHER_SIM_KEYS)
+        values, d = field_values(cls, cfg, prefix, extra=OTHER_SIM_KEYS)
         if "name" in d and d["name"] != "pymunk2d":
             raise ConfigError(f"{prefix}.name", f"must be 'pymunk2d', got {d['name']!r}")
         return cls(**values)
