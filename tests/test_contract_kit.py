@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from ccm.checks.controller import check_controller, parametrize_with_checks
+from ccm.checks.simulator import check_simulator
 from ccm.checks.steps import ContractError
 from ccm.checks.worlds import world
 from ccm.control.registry import make_controller
@@ -120,3 +121,90 @@ def test_the_fault_world_spikes_and_the_clean_one_does_not() -> None:
     run_check("step_shapes", "pymunk2d", checks["step_shapes"])
     with pytest.raises(ContractError):
         run_check("finite_on_sensor_faults", "pymunk2d", checks["finite_on_sensor_faults"])
+
+
+# ---------------------------------------------------------------- simulators
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.05])
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_every_backend_passes_the_simulator_kit(backend: str, noise: float) -> None:
+    """With a noiseless and a noisy F/T sensor (N per axis)."""
+    check_simulator(world(backend, sim={"sensor": {"force_noise_std": noise}}).make_sim, backend)
+
+
+class _Wrapped:
+    """A simulator plugin that delegates to ccm's planar backend and breaks one promise."""
+
+    def __init__(self) -> None:
+        self.inner = world("pymunk2d").make_sim()
+        self.dim, self.control_dt, self.k = 2, self.inner.control_dt, 0
+
+    def reset(self, seed: int | None = None):  # noqa: ANN201
+        self.k = 0
+        return self.inner.reset(seed=seed)
+
+    def step(self, command: Command):  # noqa: ANN201
+        self.k += 1
+        return self.inner.step(command)
+
+    def close(self) -> None:
+        self.inner.close()
+
+    def __enter__(self) -> _Wrapped:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class EchoSensor(_Wrapped):
+    def step(self, command: Command):  # noqa: ANN201
+        obs, info = super().step(command)
+        obs.force = np.array(command.force, float)
+        return obs, info
+
+
+class UnseededNoise(_Wrapped):
+    def step(self, command: Command):  # noqa: ANN201
+        obs, info = super().step(command)
+        obs.force = obs.force + np.random.default_rng().normal(0.0, 0.01, 2)
+        return obs, info
+
+
+class NewExtraKey(_Wrapped):
+    def step(self, command: Command):  # noqa: ANN201
+        obs, info = super().step(command)
+        if self.k > 10:
+            info.extra = {**info.extra, "late": 1.0}
+        return obs, info
+
+
+class SwallowsNaN(_Wrapped):
+    def step(self, command: Command):  # noqa: ANN201
+        return super().step(Command(np.nan_to_num(command.force), command.torque))
+
+
+class QuaternionIn2D(_Wrapped):
+    def step(self, command: Command):  # noqa: ANN201
+        obs, info = super().step(command)
+        obs.orientation = np.array([0.0, 0.0, 0.0, 1.0])
+        return obs, info
+
+
+@pytest.mark.parametrize(
+    ("cls", "expected"),
+    [
+        (EchoSensor, r"^measures_external_wrench \(sim\): the mean measured force \[5\.0, 0\.0\] "
+         r"N is not the true external force"),
+        (UnseededNoise, r"^deterministic \(sim\): step 1: force differs between two runs"),
+        (NewExtraKey, r"^extra_keys \(sim\): step 11: StepInfo.extra keys changed \(late\)$"),
+        (SwallowsNaN, r"^refuses_non_finite \(sim\): a NaN command did not raise "
+         r"SimulationDiverged$"),
+        (QuaternionIn2D, r"^step_shapes \(sim\): step 1: observation orientation has shape "
+         r"\(4,\), need \(1,\)$"),
+    ],
+)  # fmt: skip
+def test_a_broken_simulator_fails_the_check_that_names_it(cls: type, expected: str) -> None:
+    with pytest.raises(ContractError, match=expected):
+        check_simulator(cls, "sim")

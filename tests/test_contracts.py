@@ -1,8 +1,7 @@
 """Contract checks over every simulator backend, and the controllers' step-object check in
 the scenes where a controller's history shows (issue #21, #40).
 
-* A simulator: ``with`` closes it; ``reset(seed)`` is deterministic; ``step`` returns an
-  Observation of the task's dimension and the same ``StepInfo.extra`` keys every step.
+* A simulator: the simulator kit (:mod:`ccm.checks.simulator`) in a task's scene.
 * A controller: every config passes the contract kit on both backends
   (``tests/test_contract_kit.py``, :mod:`ccm.checks.controller`); here, the controllers whose
   kept history shows only with contacts or a setting are checked for views of the step
@@ -11,59 +10,26 @@ the scenes where a controller's history shows (issue #21, #40).
 
 from __future__ import annotations
 
-import copy
-
-import numpy as np
 import pytest
 
+from ccm.checks.simulator import check_simulator
 from ccm.checks.steps import check_keeps_no_views
 from ccm.control.registry import make_controller
 from ccm.core.errors import to_plain
-from ccm.core.types import Command, Observation
-from ccm.experiment.components import build_components
+from ccm.experiment.components import build_components, build_sim_task
 from ccm.experiment.user_configs import group_options
 from ccm.sim import BACKENDS
 
 #: a task per backend for the checks (2D: springs; 3D: table contact)
 TASK = {"pymunk2d": "multi_spring", "pybullet3d": "press_slide_3d"}
-STEPS = 300
-
-
-def run_steps(comp, seed: int, steps: int = STEPS) -> list[Observation]:  # noqa: ANN001
-    obs, _ = comp.sim.reset(seed=seed)
-    comp.controller.reset(comp.task.dim, comp.sim.control_dt)
-    pattern = comp.controller.prepare(comp.task.pattern, comp.task.contacts,
-                                      np.random.default_rng(seed))  # fmt: skip
-    out = [copy.deepcopy(obs)]  # the simulator may reuse its objects
-    keys = None
-    for _ in range(steps):
-        cmd = comp.controller.step(obs, pattern.sample(obs.t))
-        assert isinstance(cmd, Command)
-        assert cmd.force.shape == (comp.task.dim,)
-        assert cmd.torque.shape == obs.ang_vel.shape
-        sig = comp.controller.signals()
-        assert keys is None or set(sig) == keys, "signals() keys changed between steps"
-        keys = set(sig)
-        obs, _ = comp.sim.step(cmd)
-        out.append(copy.deepcopy(obs))
-    return out
 
 
 @pytest.mark.parametrize("backend", list(BACKENDS))
 def test_simulator_contract(composer, backend: str) -> None:
-    comp = build_components(composer([f"sim={backend}", f"task={TASK[backend]}",
-                                       "controller=fixed_impedance"]))  # fmt: skip
-    with comp.sim as sim:
-        first, info0 = sim.reset(seed=4)
-        again, _ = sim.reset(seed=4)
-        for name in ("position", "orientation", "lin_vel", "force"):
-            assert np.array_equal(getattr(first, name), getattr(again, name)), name
-        assert first.position.shape == (comp.task.dim,) and sim.dim == comp.task.dim
-        zero = Command(force=np.zeros(sim.dim), torque=np.zeros(first.ang_vel.shape))
-        for _ in range(5):
-            obs, info = sim.step(zero)
-            assert obs.t > first.t and set(info.extra) == set(info0.extra)
-    assert sim.dim in (2, 3)
+    """The simulator kit (:mod:`ccm.checks.simulator`) on each backend in a task's scene
+    (``tests/test_contract_kit.py`` runs it in the kit's own worlds)."""
+    cfg = composer([f"sim={backend}", f"task={TASK[backend]}", "controller=fixed_impedance"])
+    check_simulator(lambda: build_sim_task(cfg)[0], backend)
 
 
 #: the ``plugin`` config is a template for a controller from outside ccm: checked here with
