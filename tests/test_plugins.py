@@ -77,6 +77,12 @@ def test_a_bad_plugin_is_one_line_naming_it(target: object, expected: str) -> No
     assert line.startswith("controller._target_: ") and expected in line, line
 
 
+def test_the_plugin_template_without_a_target_says_what_to_set() -> None:
+    line = _refusal({"type": None, "_target_": None})
+    assert line.startswith("controller.type: is not set; allowed: fixed_impedance, ")
+    assert line.endswith("(or controller._target_: an import path 'module:Class')")
+
+
 def test_a_plugins_unknown_parameter_is_named() -> None:
     line = _refusal({"_target_": f"{PLUGINS}:PlainPD", "stifness": 1.0})
     assert line.startswith("controller.stifness: unknown key; allowed: stiffness, damping")

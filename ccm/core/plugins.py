@@ -43,7 +43,7 @@ def plugin_entry_points(kind: str) -> dict[str, str]:
 
 def available(kind: str, builtins: Mapping[str, str]) -> dict[str, str]:
     """Every name usable for ``kind``: the built-ins, then the installed plugins; a plugin
-    may not take a built-in's name (the built-in wins, and :func:`resolve_class` says so)."""
+    that takes a built-in's name is not used (``ccm list`` says so)."""
     plugins = {k: v for k, v in plugin_entry_points(kind).items() if k not in builtins}
     return {**builtins, **plugins}
 
@@ -99,10 +99,8 @@ def resolve_class(
         name = cfg.get(name_key)
         if name not in names:
             hint = f" (or {key}._target_: an import path 'module:Class')"
-            raise ConfigError(
-                f"{key}.{name_key}",
-                f"unknown value {name!r}; allowed: {', '.join(names)}{hint}",
-            )
+            what = "is not set" if name is None else f"unknown value {name!r}"
+            raise ConfigError(f"{key}.{name_key}", f"{what}; allowed: {', '.join(names)}{hint}")
         label, where = str(name), f"{key}.{name_key}"
         obj = load_object(names[name], where)
     if not (inspect.isclass(obj) and issubclass(obj, base)):
