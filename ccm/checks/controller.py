@@ -36,6 +36,7 @@ import numpy as np
 
 from ccm.checks.steps import ContractError, check_keeps_no_views
 from ccm.checks.worlds import World, world
+from ccm.core.errors import exception_line
 from ccm.core.types import Command
 
 Factory = Callable[[], Any]
@@ -69,8 +70,7 @@ def run_check(name: str, backend: str, check: Callable[[], None]) -> None:
     except ContractError as exc:
         raise ContractError(f"{name} ({backend}): {exc}") from exc
     except Exception as exc:  # noqa: BLE001 - a controller's own error breaks the check too
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        raise ContractError(f"{name} ({backend}): {type(exc).__name__}: {first}") from exc
+        raise ContractError(f"{name} ({backend}): {exception_line(exc)}") from exc
 
 
 def parametrize_with_checks(factories: Mapping[str, Factory],

@@ -24,6 +24,13 @@ class ConfigError(ValueError):
         super().__init__(f"{key}: {problem}")
 
 
+def exception_line(exc: BaseException) -> str:
+    """``"<Type>: <first line of the message>"`` (just the type if the message is empty): an
+    exception from someone else's code (a plugin) as one line."""
+    text = str(exc).strip()
+    return f"{type(exc).__name__}: {text.splitlines()[0]}" if text else type(exc).__name__
+
+
 class SimulationDiverged(RuntimeError):
     """The simulation produced NaN/inf or a runaway state; the run is marked failed."""
 

@@ -26,7 +26,7 @@ from collections.abc import Mapping
 from importlib import metadata
 from typing import Any
 
-from ccm.core.errors import ConfigError
+from ccm.core.errors import ConfigError, exception_line
 
 #: component kind -> the entry-point group that installed packages register plugins under
 GROUPS: dict[str, str] = {
@@ -65,9 +65,8 @@ def load_object(path: Any, key: str) -> Any:
     try:
         module = importlib.import_module(module_name)
     except Exception as exc:  # noqa: BLE001 - a plugin's import may raise anything
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
         raise ConfigError(
-            key, f"plugin {path!r}: importing {module_name!r} failed: {type(exc).__name__}: {first}"
+            key, f"plugin {path!r}: importing {module_name!r} failed: {exception_line(exc)}"
         ) from None
     obj = module
     for part in attr.split("."):

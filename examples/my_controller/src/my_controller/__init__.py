@@ -1,0 +1,1 @@
+"""An example ccm plugin package: one controller, its config and its contract test."""
