@@ -140,7 +140,10 @@ def test_ccm_list_shows_the_plugins_and_names_the_broken(installed: Path, capsys
     assert "  heavy                        tests.plugins.sims:HeavyPymunk\n" in out
 
 
-def test_without_plugins_ccm_list_says_none(capsys) -> None:
+def test_without_plugins_ccm_list_says_none(capsys, monkeypatch) -> None:
+    # no installed distribution at all (a user may have installed examples/my_controller)
+    bare = [p for p in sys.path if not p or not any(Path(p).glob("*.dist-info"))]
+    monkeypatch.setattr(sys, "path", bare)
     assert list_plugins() == 0
     assert (
         "controller plugins (entry points ccm.controllers): none installed"
