@@ -84,6 +84,25 @@ def test_the_wrench_action_is_the_commanded_force() -> None:
         env.close()
 
 
+def test_the_variable_impedance_action_is_the_documented_law() -> None:
+    """``K (x_d + Δx − x) + 2 ζ √(K m) (ẋ_d − ẋ)`` per axis, m = 1 kg (the springs' block)."""
+    from ccm.core.types import Observation, TargetSample
+    from ccm.envs.env import ChangingContactEnv
+
+    env = ChangingContactEnv(experiment="h1_adaptive_control")
+    try:
+        obs = Observation(0.0, np.array([0.1, 0.0]), np.zeros(1), np.array([0.02, -0.01]),
+                          np.zeros(1), np.zeros(2), np.zeros(1))  # fmt: skip
+        tgt = TargetSample(0.0, np.array([0.1, 0.02]), np.array([0.0, 0.1]), np.zeros(2),
+                           np.zeros(1))  # fmt: skip
+        act = np.array([0.01, 0.0, 400.0, 100.0, 1.0, 0.5])  # Δx, K, ζ
+        got = env._command(act, obs, tgt).force
+        want = [400.0 * 0.01 + 2 * 1.0 * 20.0 * -0.02, 100.0 * 0.02 + 2 * 0.5 * 10.0 * 0.11]
+        np.testing.assert_allclose(got, want, rtol=1e-12)
+    finally:
+        env.close()
+
+
 def test_bad_settings_are_one_line_naming_the_key() -> None:
     from ccm.envs.env import ChangingContactEnv
 

@@ -83,12 +83,13 @@ class ChangingContactEnv(gym.Env):
         sim: str | None = None,
         action: str = "variable_impedance",
         overrides: Sequence[str] = (),
-        max_delta_m: float = 0.05,
-        stiffness_range: tuple[float, float] = (10.0, 1000.0),
-        damping_ratio_range: tuple[float, float] = (0.3, 2.0),
-        fixed_stiffness: float = 300.0,
-        max_force_N: float = 50.0,
-        force_limit_N: float = 30.0,
+        # the defaults are ccm's choices, none from the papers:
+        max_delta_m: float = 0.05,  # m: half the springs' 0.1 m circle
+        stiffness_range: tuple[float, float] = (10.0, 1000.0),  # N/m: spans ccm's presets
+        damping_ratio_range: tuple[float, float] = (0.3, 2.0),  # under- to over-damped
+        fixed_stiffness: float = 300.0,  # N/m: configs/controller/fixed_impedance.yaml
+        max_force_N: float = 50.0,  # N: above every task's force target (≤ 15 N)
+        force_limit_N: float = 30.0,  # N: twice the largest force target (15 N)
     ) -> None:
         self.action = check_choice("action", action, ACTIONS)
         cfg = compose_setting(experiment, task, sim, overrides)
@@ -142,6 +143,7 @@ class ChangingContactEnv(gym.Env):
         excess = max(0.0, float(np.linalg.norm(obs.force)) - self.force_limit_N)
         reward = -err / TRACK_SCALE_M - excess / FORCE_SCALE_N
         truncated = obs.t >= self.task.pattern.duration - 0.5 * self.sim.control_dt
+        # for analysis, not for a policy: n_contacts is the simulator's truth
         info = {"tracking_error_m": err, "n_contacts": truth.n_contacts}
         return self._observe(), reward, False, bool(truncated), info
 
