@@ -7,7 +7,7 @@ ARGS ?=
 # the experiment `make run` runs: the headline one (seed A H4, Fig. 16); make run EXP=smoke is quicker
 EXP ?= h4_collisions
 
-.PHONY: setup run test test-slow lint format bench clean reproduce-paper reproduce-paper-quick browser mutation
+.PHONY: setup run test test-slow lint format bench clean reproduce-paper reproduce-paper-quick browser mutation suite-results
 
 setup: $(STAMP)
 
@@ -57,6 +57,11 @@ reproduce-paper: setup  ## all paper experiments over their seeds, then ccm repo
 
 reproduce-paper-quick: setup  ## the same pipeline with seed 0 and short trials (a smoke test)
 	$(BIN)/ccm paper --quick --out $(PAPER_DIR)-quick
+
+# the stored results `ccm suite` ranks a controller against (ccm/suite/results/<suite>/): every
+# built-in entry of configs/suite/changing_contact_v1.yaml over the whole suite, two jobs at a time
+suite-results: setup  ## regenerate the built-in controllers' stored suite results
+	$(BIN)/ccm suite --regenerate
 
 bench: setup  ## speed table; also writes bench.json
 	$(BIN)/python -m ccm.bench --out bench.json --paper-dir $(PAPER_DIR)

@@ -55,6 +55,10 @@ commands:
   animate RUN_DIR       a clip of one recorded trial (MP4 with ffmpeg, else GIF), replayed
                         from its time series: --condition C (default the first), --trial N
                         (default the last recorded), --out FILE, --fps F
+  suite [OVERRIDES]     score a controller on the changing-contact benchmark and rank it
+                        against the built-in ones: ccm suite controller=NAME; --list shows
+                        the tasks and protocol, --tasks a,b a subset, --jobs N workers,
+                        --regenerate the built-in results (ccm/suite/cli.py)
   demo TASK --out FILE  record one demonstration of a task in simulation (seed B's
                         simulated human guides the robot in admittance mode) as CSV or
                         Parquet, for a pattern {type: recording, file: FILE}; --seed N,
@@ -120,16 +124,18 @@ def cmd_list(args: Sequence[str] = ()) -> int:
 
 def list_plugins() -> int:
     """Print the plugins that installed packages register (``ccm.controllers``,
-    ``ccm.simulators`` entry points), each loaded and checked; return how many are broken
-    (each named with its one-line reason)."""
+    ``ccm.simulators``, ``ccm.segments`` entry points), each loaded and checked; return how
+    many are broken (each named with its one-line reason)."""
     from ccm.control.registry import CONTROLLERS, controller_class
     from ccm.core import plugins
     from ccm.core.errors import ConfigError
     from ccm.sim import BACKENDS, sim_class
+    from ccm.tasks.trajectory import SEGMENTS, segment_class
 
     checks = {
         "controller": (CONTROLLERS, lambda name: controller_class({"type": name})),
         "sim": (BACKENDS, lambda name: sim_class({"name": name})),
+        "segment": (SEGMENTS, lambda name: segment_class({"type": name}, "task.pattern[]")),
     }
     broken = 0
     for kind, group in plugins.GROUPS.items():
@@ -351,13 +357,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         return cmd_list(argv[1:])
     if argv[0] == "run":
         return cmd_run(argv[1:])
-    if argv[0] in ("report", "paper", "plots", "animate", "demo"):
+    if argv[0] in ("report", "paper", "plots", "animate", "demo", "suite"):
         from ccm.analyses.demo import main as demo
         from ccm.core.errors import ConfigError
         from ccm.plots.animate import main as animate
         from ccm.plots.redraw import main as plots
         from ccm.reporting.paper import main as paper
         from ccm.reporting.report import main as report
+        from ccm.suite.cli import main as suite
 
         try:
             commands = {
@@ -366,13 +373,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "plots": plots,
                 "animate": animate,
                 "demo": demo,
+                "suite": suite,
             }
             return commands[argv[0]](argv[1:])
         except ConfigError as exc:
             return _fail(str(exc), EXIT_CONFIG)
     return _fail(
         f"unknown command {argv[0]!r}; allowed: run, list, report, paper, plots, animate, demo, "
-        "--help",
+        "suite, --help",
         EXIT_CONFIG,
     )
 

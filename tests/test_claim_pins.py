@@ -117,7 +117,7 @@ def test_a_requirement_holds_its_upper_bound() -> None:
 def test_the_interval_is_students_t_with_the_sample_std() -> None:
     """Five margins 1, 2, 3, 4, 5: mean 3, sample std sqrt(2.5), t(4) = 2.776, half-width
     2.776 sqrt(2.5) / sqrt(5) = 1.963 (a quantile one row off, or ddof 0, changes it)."""
-    from ccm.reporting.claim_stats import mean_ci, t95
+    from ccm.core.stats import mean_ci, t95
 
     assert t95(5) == pytest.approx(2.776) and t95(2) == pytest.approx(12.706)
     mean, ci = mean_ci([1.0, 2.0, 3.0, 4.0, 5.0])
@@ -128,7 +128,7 @@ def test_the_t_quantile_table_ends_at_30_degrees_of_freedom() -> None:
     """t(29) = 2.045 and t(30) = 2.042 are the table's last rows; 31 and more degrees of
     freedom take the normal 1.96; one sample has no quantile. Two margins 1 and 3: mean 2,
     half-width t(1) sqrt(2) / sqrt(2) = 12.706 (an interval, not the one-seed rule)."""
-    from ccm.reporting.claim_stats import mean_ci, t95
+    from ccm.core.stats import mean_ci, t95
 
     assert t95(30) == pytest.approx(2.045) and t95(31) == pytest.approx(2.042)
     assert t95(32) == 1.96 and t95(500) == 1.96 and math.isnan(t95(1))

@@ -71,7 +71,7 @@ def test_the_wrench_action_is_the_commanded_force() -> None:
     (the springs pull too: compared with the zero-force run)."""
     from ccm.envs.env import ChangingContactEnv
 
-    env = ChangingContactEnv(experiment="h1_adaptive_control", action="wrench")
+    env = ChangingContactEnv(task="multi_spring", action="wrench")
     try:
         vel = []
         for fx in (0.0, 2.0):
@@ -89,7 +89,7 @@ def test_the_variable_impedance_action_is_the_documented_law() -> None:
     from ccm.core.types import Observation, TargetSample
     from ccm.envs.env import ChangingContactEnv
 
-    env = ChangingContactEnv(experiment="h1_adaptive_control")
+    env = ChangingContactEnv(task="multi_spring")
     try:
         obs = Observation(0.0, np.array([0.1, 0.0]), np.zeros(1), np.array([0.02, -0.01]),
                           np.zeros(1), np.zeros(2), np.zeros(1))  # fmt: skip
@@ -110,3 +110,23 @@ def test_bad_settings_are_one_line_naming_the_key() -> None:
         ChangingContactEnv(action="torque")
     with pytest.raises(ConfigError, match=r"^stiffness_range: must be \(low, high\)"):
         ChangingContactEnv(stiffness_range=(500.0, 10.0))
+    with pytest.raises(
+        ConfigError, match=r"^task: unknown task 'nope' of suite changing_contact_v1; "
+    ):
+        ChangingContactEnv(task="nope")
+
+
+def test_an_environment_is_its_suite_task() -> None:
+    """ContactLatency is the suite's contact_latency: its sensor reads 4 steps late, and its
+    plan is the suite's approach and 10 N push (not mpc_contact's hold)."""
+    env = gym.make("ccm/ContactLatency-v0")
+    try:
+        sim, task = env.unwrapped.sim, env.unwrapped.task
+        assert sim.sensor.config.delay_steps == 4
+        assert task.pattern.duration == pytest.approx(5.0)
+        env.reset(seed=0)
+        assert env.unwrapped._target.position[0] == pytest.approx(0.0)
+        end = task.pattern.sample(4.9)
+        assert end.position[0] == pytest.approx(0.0505) and end.force_mag == pytest.approx(10.0)
+    finally:
+        env.close()

@@ -1,6 +1,8 @@
 """The example plugin package (issue #41, part 5), installed as a user installs it (into a
 directory of its own, so the rest of the suite sees no plugin), then its README's commands:
-``ccm list``, its own contract test, ``ccm run --config-dir`` and the Gymnasium rollout."""
+its own contract test, ``ccm run --config-dir``, ``ccm suite`` (on two of the suite's tasks
+here: the whole suite takes minutes, its figure is in the README) and the Gymnasium rollout;
+and ``ccm list``, which the README mentions."""
 
 from __future__ import annotations
 
@@ -62,3 +64,19 @@ def test_the_gymnasium_rollout(installed, tmp_path: Path) -> None:
     res = _run([sys.executable, str(EXAMPLE / "gym_rollout.py")], installed, tmp_path)
     assert res.returncode == 0, res.stderr
     assert res.stdout.startswith("ccm/MultiSpring-v0: 6000 steps, return ")
+
+
+def test_ccm_suite_ranks_it_beside_the_built_in_controllers(installed, tmp_path: Path) -> None:
+    """README step 4 on two tasks: my_pd is on the leaderboard with every stored entry."""
+    import csv
+
+    res = _run([str(BIN / "ccm"), "suite", "--config-dir", str(EXAMPLE / "configs"),
+                "controller=my_pd", "--tasks", "contact,multi_spring", "--out", "board"],
+               installed, tmp_path)  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    rows = list(csv.DictReader((tmp_path / "board" / "leaderboard.csv").open()))
+    entries = {r["entry"] for r in rows}
+    assert "my_pd (yours)" in entries and {"fixed_impedance", "avic", "gp_mpc"} <= entries
+    mine = [r for r in rows if r["entry"] == "my_pd (yours)" and r["ranked"] == "1"]
+    assert mine and all(r["status"] == "ok" and r["rank"] for r in mine)
+    assert "my_pd (yours)" in (tmp_path / "board" / "leaderboard.md").read_text()

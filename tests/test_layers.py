@@ -4,7 +4,7 @@ below it, and no import cycle exists, counting imports inside functions.
 The layers, bottom to top (``|`` separates siblings, which must not import each other)::
 
     core  <-  sim | tasks | learn  <-  control  <-  metrics | checks  <-  plots  <-  experiment
-          <-  analyses | envs  <-  reporting  <-  cli, bench
+          <-  analyses | suite  <-  envs | reporting  <-  cli, bench
 
 Plots sit above metrics rather than beside them: a figure draws what a metric computes (the
 motion-subspace error, the mode decisions, the rail distances) and reuses that code instead
@@ -39,7 +39,8 @@ LAYERS: list[tuple[int, str, tuple[str, ...]]] = [
     (4, "plots", ("ccm.plots", "ccm.plots.*")),
     (5, "experiment", ("ccm.experiment", "ccm.experiment.*")),
     (6, "analyses", ("ccm.analyses", "ccm.analyses.*")),
-    (6, "envs", ("ccm.envs", "ccm.envs.*")),
+    (6, "suite", ("ccm.suite", "ccm.suite.*")),
+    (7, "envs", ("ccm.envs", "ccm.envs.*")),
     (7, "reporting", ("ccm.reporting", "ccm.reporting.*")),
     (8, "cli", ("ccm.cli", "ccm.bench", "ccm.bench.*")),
 ]  # fmt: skip

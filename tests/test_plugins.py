@@ -9,11 +9,13 @@ test writes into a directory on ``sys.path``, as ``pip install`` would.
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ccm.cli import list_plugins
@@ -23,6 +25,7 @@ from ccm.core.plugins import load_object
 from ccm.experiment.components import build_components
 from ccm.experiment.trial import run_trial
 from ccm.sim import make_sim
+from ccm.tasks.trajectory import build_pattern
 from tests.plugins.controllers import PlainPD
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -116,6 +119,8 @@ def installed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
         f"avic = {PLUGINS}:PlainPD\n"
         "[ccm.simulators]\n"
         "heavy = tests.plugins.sims:HeavyPymunk\n"
+        "[ccm.segments]\n"
+        f"wave = {SEGMENTS}:Wave\n"
     )
     monkeypatch.syspath_prepend(str(tmp_path))
     return tmp_path
@@ -138,6 +143,55 @@ def test_ccm_list_shows_the_plugins_and_names_the_broken(installed: Path, capsys
     assert "broken_one" in out and "broken: controller.type: plugin 'broken_one'" in out
     assert "not used, 'avic' is a built-in controller" in out
     assert "  heavy                        tests.plugins.sims:HeavyPymunk\n" in out
+    assert f"  wave                         {SEGMENTS}:Wave\n" in out
+
+
+# ---------------------------------------------------------------- task segments
+
+SEGMENTS = "tests.plugins.segments"
+
+
+def test_a_segment_plugin_by_import_path_is_part_of_the_pattern() -> None:
+    """``{_target_: module:Class, ...}`` in a task's pattern: built from where the previous
+    segment ends, with its own parameters; its samples are the class's law (x = start + a
+    sin(2π t/T) along the axis), and the next segment starts where it ends."""
+    spec = [
+        {"type": "line", "to": [0.1, 0.0], "duration": 1.0},
+        {"_target_": f"{SEGMENTS}:Wave", "duration": 2.0, "amplitude": 0.02, "axis": [0, 1],
+         "name": "wave"},
+        {"type": "hold", "duration": 0.5},
+    ]  # fmt: skip
+    pattern = build_pattern(spec, [0.0, 0.0], control_dt=0.001)
+    assert pattern.duration == pytest.approx(3.5)
+    quarter = pattern.sample(1.0 + 0.5)  # a quarter period into the wave
+    np.testing.assert_allclose(quarter.position, [0.1, 0.02], atol=1e-12)
+    np.testing.assert_allclose(quarter.velocity, [0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(quarter.acceleration, [0.0, -0.02 * math.pi**2], rtol=1e-12)
+    np.testing.assert_allclose(pattern.sample(3.2).position, [0.1, 0.0], atol=1e-12)
+
+
+def test_an_entry_point_segment_is_a_type(installed: Path) -> None:
+    pattern = build_pattern([{"type": "wave", "duration": 1.0}], [0.0, 0.0], control_dt=0.001)
+    np.testing.assert_allclose(pattern.sample(0.25).position, [0.01, 0.0], atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("entry", "expected"),
+    [
+        ({"type": "spiral"}, "task.pattern[0].type: unknown value 'spiral'; allowed: line, arc"),
+        ({"_target_": f"{PLUGINS}:PlainPD"}, "task.pattern[0]._target_: plugin "
+         f"'{PLUGINS}:PlainPD' is a class PlainPD, not a subclass of ccm.tasks.segments.Segment"),
+        ({"_target_": f"{SEGMENTS}:Picky"}, f"task.pattern[0]: plugin '{SEGMENTS}:Picky' refused "
+         "its parameters: ValueError: amplitude must be in furlongs"),
+        ({"_target_": f"{SEGMENTS}:Elsewhere"}, f"task.pattern[0]: plugin '{SEGMENTS}:Elsewhere' "
+         "starts at [1.0, 1.0], not where the previous segment ends ([0.0, 0.0])"),
+        ({"_target_": f"{SEGMENTS}:Wave", "colour": 3}, "refused its parameters: TypeError"),
+    ],
+)  # fmt: skip
+def test_a_bad_segment_plugin_is_one_line_naming_it(entry: dict, expected: str) -> None:
+    with pytest.raises(ConfigError) as err:
+        build_pattern([{"duration": 1.0, **entry}], [0.0, 0.0], control_dt=0.001)
+    assert expected in str(err.value) and "\n" not in str(err.value), str(err.value)
 
 
 def test_without_plugins_ccm_list_says_none(capsys, monkeypatch) -> None:

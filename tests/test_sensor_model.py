@@ -132,6 +132,8 @@ def test_faults_need_both_a_probability_and_a_size() -> None:
         ({"dropout_prob": 1.5}, "sim.sensor.dropout_prob: "),
         ({"spike_prob": -0.1}, "sim.sensor.spike_prob: "),
         ({"dropout_steps": -1}, "sim.sensor.dropout_steps: "),
+        ({"delay_steps": -2}, "sim.sensor.delay_steps: "),
+        ({"delay_steps": 1.5}, "sim.sensor.delay_steps: "),
         ({"color": 1}, "sim.sensor.color: unknown key; allowed: force_noise_std, "),
     ],
 )  # fmt: skip
@@ -197,3 +199,33 @@ def test_small_faults_are_faults() -> None:
         SensorConfig.from_mapping("noisy")
     with pytest.raises(ConfigError, match=r"^arm\.ft\.force_bias: "):
         SensorConfig.from_mapping({"force_bias": "x"}, prefix="arm.ft")
+
+
+def test_a_delay_of_d_returns_the_reading_of_d_calls_before() -> None:
+    """delay_steps = d: call k returns call k − d's reading, and the first reading until d
+    calls have been made; the noise is that of the call that took the reading, so the
+    delayed stream is the undelayed one shifted by d; a reset forgets the old readings."""
+    d = 3
+    late, now = (
+        _sensor(force_noise_std=F_STD.tolist(), delay_steps=d),
+        _sensor(force_noise_std=F_STD.tolist()),
+    )
+    assert not late.ideal  # a delayed sensor never returns the true wrench as it is
+    truths = [F_TRUE * (k + 1) for k in range(8)]
+    for s in (late, now):
+        s.reset(np.random.default_rng(7))
+    got = [late.measure(f, T_TRUE)[0] for f in truths]
+    want = [now.measure(f, T_TRUE)[0] for f in truths]
+    for k in range(8):
+        np.testing.assert_array_equal(got[k], want[max(0, k - d)])
+    late.reset(np.random.default_rng(7))
+    np.testing.assert_allclose(late.measure(-F_TRUE, T_TRUE)[0], want[0] - 2 * F_TRUE, atol=1e-12)
+
+
+def test_an_ideal_sensor_with_a_delay_is_late_but_exact() -> None:
+    """Without noise the delayed readings are the true wrenches of d calls before."""
+    s = _sensor(delay_steps=2)
+    s.reset(np.random.default_rng(0))
+    out = [s.measure(np.full(3, float(k)), np.array([float(-k)])) for k in range(5)]
+    assert [float(f[0]) for f, _ in out] == [0.0, 0.0, 0.0, 1.0, 2.0]
+    assert [float(t[0]) for _, t in out] == [0.0, 0.0, 0.0, -1.0, -2.0]

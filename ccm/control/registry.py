@@ -7,8 +7,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ccm.control.base import Controller
-from ccm.core.errors import ConfigError, exception_line
-from ccm.core.plugins import resolve_class
+from ccm.core.plugins import call_plugin, resolve_class
 
 #: built-in controllers: ``type`` -> "module:Class", imported when used. Presets of a class
 #: (AVIC with Algorithm 1: ``configs/controller/avic_modes.yaml``) are configs, not names.
@@ -34,11 +33,4 @@ def make_controller(cfg: Mapping[str, Any], key: str = "controller") -> Controll
     ``from_config`` gets the rest of the mapping). A plugin's constructor that refuses its
     parameters with any exception is one :class:`ConfigError` line naming the plugin."""
     cls, label = resolve_class("controller", cfg, "type", CONTROLLERS, key, Controller)
-    try:
-        return cls.from_config(cfg, key=key)
-    except ConfigError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - a plugin may raise anything
-        raise ConfigError(
-            key, f"plugin {label!r} refused its parameters: {exception_line(exc)}"
-        ) from exc
+    return call_plugin(label, key, cls.from_config, cfg, key=key)

@@ -1,10 +1,11 @@
 """Components from outside ccm: by import path, or from installed packages' entry points.
 
-A controller or a simulator is named in its config in one of three ways:
+A controller, a simulator or a task's motion segment is named in its config in one of three
+ways:
 
-* ``type: <name>`` (controllers) or ``name: <name>`` (simulators): a built-in, or a name that
-  an installed package registers under the entry-point group of :data:`GROUPS`, e.g. in its
-  ``pyproject.toml``::
+* ``type: <name>`` (controllers, segments) or ``name: <name>`` (simulators): a built-in, or
+  a name that an installed package registers under the entry-point group of :data:`GROUPS`,
+  e.g. in its ``pyproject.toml``::
 
       [project.entry-points."ccm.controllers"]
       my_ctrl = "my_pkg.ctrl:MyController"
@@ -22,7 +23,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from importlib import metadata
 from typing import Any
 
@@ -32,6 +33,7 @@ from ccm.core.errors import ConfigError, exception_line
 GROUPS: dict[str, str] = {
     "controller": "ccm.controllers",
     "sim": "ccm.simulators",
+    "segment": "ccm.segments",  # a task's motion segments: a task itself is YAML (--config-dir)
 }
 
 
@@ -113,6 +115,21 @@ def resolve_class(
         missing = ", ".join(sorted(getattr(obj, "__abstractmethods__", ())))
         raise ConfigError(where, f"plugin {label!r} does not implement {missing}")
     return obj, label
+
+
+def call_plugin(
+    label: str, where: str, build: Callable[..., Any], /, *args: Any, **kwargs: Any
+) -> Any:
+    """``build(*args, **kwargs)``: a plugin's constructor (or ``from_config``) that refuses its
+    parameters with any exception is one ConfigError line naming the plugin and ``where``."""
+    try:
+        return build(*args, **kwargs)
+    except ConfigError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a plugin may raise anything
+        raise ConfigError(
+            where, f"plugin {label!r} refused its parameters: {exception_line(exc)}"
+        ) from exc
 
 
 def accepts_key(cls: type) -> bool:

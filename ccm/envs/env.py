@@ -1,6 +1,6 @@
-"""A Gymnasium environment over a ccm task (issue #41, part 4): a policy commands the
-end-effector of a changing-contact task through one of three action layouts, and is
-rewarded for tracking the task's target motion without excess force.
+"""A Gymnasium environment over a task of ccm's benchmark suite (issue #41, part 4): a policy
+commands the end-effector of a changing-contact task through one of three action layouts,
+and is rewarded for tracking the task's target motion without excess force.
 
 **Observation** (a ``Dict`` of float32 boxes; n = 2 or 3 task axes, r = 1 or 3 rotational):
 ``position`` (n) [m], ``orientation`` (1: angle [rad]; 4: quaternion x, y, z, w),
@@ -41,33 +41,31 @@ from ccm.control.loop import HybridLoop
 from ccm.core.errors import ConfigError, SimulationDiverged, check_choice, check_positive, to_plain
 from ccm.core.types import Command, Observation, TargetSample
 from ccm.experiment.components import build_sim_task
+from ccm.suite.definition import DEFAULT_SUITE, load_suite
+from ccm.suite.runner import compose_task
 
 ACTIONS = ("variable_impedance", "fixed_impedance", "wrench")
 #: the reward's scales (module docstring): 1 cm of tracking error, 10 N of excess force
 TRACK_SCALE_M, FORCE_SCALE_N, DIVERGED_REWARD = 0.01, 10.0, -100.0
 
 
-def compose_setting(experiment: str, task: str | None, sim: str | None,
-                    overrides: Sequence[str]) -> Any:  # fmt: skip
-    """The composed config of ``experiment`` (its task, simulator and sensor settings), with
-    ``task`` and ``sim`` chosen instead where given."""
-    from hydra import compose, initialize_config_dir
-
-    from ccm.experiment.user_configs import config_dir
-
-    extra = [f"experiment={experiment}", *([f"task={task}"] if task else []),
-             *([f"sim={sim}"] if sim else []), *overrides]  # fmt: skip
-    with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="ccm_env"):
-        return compose("config", overrides=extra)
+def compose_setting(suite: str, task: str, overrides: Sequence[str]) -> Any:
+    """The composed config of ``task`` of ``suite`` (its simulator, scene, sensor and plan,
+    as ``ccm suite`` runs it), with ``overrides`` on top."""
+    spec = load_suite(suite)
+    if task not in spec.tasks:
+        raise ConfigError("task", f"unknown task {task!r} of suite {spec.name}; allowed: "
+                          f"{', '.join(spec.tasks)}")  # fmt: skip
+    return compose_task(spec, spec.tasks[task], list(overrides), 0, ())
 
 
 class ChangingContactEnv(gym.Env):
     """A ccm task as a Gymnasium environment (module docstring).
 
     Args:
-        experiment: the ``experiment`` config whose task, simulator and sensor settings the
-            environment takes (``ccm list``); its controllers are not used.
-        task, sim: a ``task`` / ``sim`` config instead of the experiment's; None: its own.
+        task: a task of ``suite`` (``ccm suite --list``): its simulator, scene, sensor and
+            plan, as the benchmark runs them.
+        suite: the benchmark suite (``configs/suite/<name>.yaml``).
         action: ``variable_impedance``, ``fixed_impedance`` or ``wrench``.
         overrides: more Hydra overrides (``sim.sensor.force_noise_std=0.1``).
         max_delta_m, stiffness_range, damping_ratio_range, fixed_stiffness, max_force_N,
@@ -78,9 +76,8 @@ class ChangingContactEnv(gym.Env):
 
     def __init__(
         self,
-        experiment: str = "h1_adaptive_control",
-        task: str | None = None,
-        sim: str | None = None,
+        task: str = "multi_spring",
+        suite: str = DEFAULT_SUITE,
         action: str = "variable_impedance",
         overrides: Sequence[str] = (),
         # the defaults are ccm's choices, none from the papers:
@@ -92,7 +89,7 @@ class ChangingContactEnv(gym.Env):
         force_limit_N: float = 30.0,  # N: twice the largest force target (15 N)
     ) -> None:
         self.action = check_choice("action", action, ACTIONS)
-        cfg = compose_setting(experiment, task, sim, overrides)
+        cfg = compose_setting(suite, task, overrides)
         self.sim, self.task = build_sim_task(cfg)
         self.mass_kg = check_positive("sim.nominal_mass_kg", cfg.sim.get("nominal_mass_kg", 1.0))
         self.max_delta_m = check_positive("max_delta_m", max_delta_m)

@@ -219,7 +219,7 @@ def _score_trial(
     # the (re-timed) pattern's end: "the motion pattern was completed in" (seed A §4.5.1);
     # completion_time_s also asks for the error to settle
     metrics["pattern_time_s"] = rec.pattern_duration
-    metrics.update(compute_extra_metrics(extra, arrays, comp, cfg))
+    metrics.update(compute_extra_metrics(extra, arrays, comp, cfg, base=metrics))
     return metrics
 
 

@@ -91,6 +91,7 @@ import numpy as np
 from ccm.core.errors import ConfigError, check_finite, check_nonneg, check_positive
 from ccm.core.filters import fft_split as _split
 from ccm.core.records import AXES
+from ccm.metrics.suite import count_contact_losses
 
 
 def _rms(x: np.ndarray) -> float:
@@ -242,11 +243,9 @@ def gp_mpc_metrics(log: Mapping[str, np.ndarray], dim: int, params: Mapping[str,
     }
     if touching.any():
         first = int(np.argmax(touching))
-        c = touching[first:].astype(int)
-        edges = np.flatnonzero(np.diff(c) != 0) + 1
-        runs = np.split(c, edges)
-        min_len = max(1, int(round(float(params.get("contact_loss_min_s", 0.005)) / dt)))
-        out["contact_losses"] = float(sum(1 for r in runs if r[0] == 0 and len(r) >= min_len))
+        out["contact_losses"] = count_contact_losses(
+            touching, dt, float(params.get("contact_loss_min_s", 0.005))
+        )
         _, high = _split(fc[first:], dt, float(params.get("oscillation_highpass_hz", 5.0)))
         out["force_oscillation_rms_N"] = _rms(high)
         out["first_contact_s"] = float(t[first])

@@ -15,6 +15,7 @@ from ccm.metrics.adaptation import measured_force_norm, prediction_skill, stiffn
 from ccm.metrics.contacts import contact_metrics
 from ccm.metrics.modes import in_contact_steps, mode_metrics, true_transition_steps
 from ccm.metrics.mpc import gp_mpc_metrics
+from ccm.metrics.suite import suite_metrics
 
 #: metrics every trial reports (issue #2)
 BASE_METRICS = (
@@ -251,6 +252,7 @@ EXTRA_METRICS: dict[str, Metric] = {
     "error_spikes": error_spike_metrics,
     "contacts": contact_metrics,
     "gp_mpc": gp_mpc_metrics,
+    "suite": suite_metrics,
 }
 
 
@@ -267,15 +269,17 @@ def check_extra_metrics(cfg: Any) -> list[str]:
 
 
 def compute_extra_metrics(
-    names: Sequence[str], log: Mapping[str, np.ndarray], comp: Any, cfg: Any
-) -> dict[str, float | None]:
+    names: Sequence[str], log: Mapping[str, np.ndarray], comp: Any, cfg: Any,
+    base: Mapping[str, Any] | None = None,
+) -> dict[str, float | None]:  # fmt: skip
     """Run the experiment's extra metrics on one trial log.
 
     Each metric gets ``params`` = ``cfg.metrics`` plus ``task_contacts``: the task's expected
     contacts in pattern order, each ``{name, position, kind}`` merged with its annotations
     ``{segment, segment_index, normal}`` (:class:`ccm.tasks.task.Task`; used by ``contacts``,
     :mod:`ccm.metrics.contacts`, seed A §4.5.1) and ``controller_report``: what the controller
-    believes after the trial (:meth:`ccm.control.base.Controller.report`). Every controller
+    believes after the trial (:meth:`ccm.control.base.Controller.report`), and the trial's
+    base metrics as ``completion_time_s`` (``base``; used by ``suite``). Every controller
     that reports K_free (the AVIC family) also gets
     :func:`ccm.metrics.adaptation.stiffness_adaptation`.
     """
@@ -284,6 +288,7 @@ def compute_extra_metrics(
     notes = getattr(task, "contact_annotations", ()) or ({},) * len(task.contacts)
     params["task_contacts"] = [{**c, **a} for c, a in zip(task.contacts, notes, strict=True)]
     params["controller_report"] = comp.controller.report() if hasattr(comp, "controller") else {}
+    params["completion_time_s"] = (base or {}).get("completion_time_s")
     out: dict[str, float | None] = {}
     for name in names:
         out.update(EXTRA_METRICS[name](log, comp.task.dim, params))

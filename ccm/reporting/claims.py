@@ -60,7 +60,8 @@ from typing import Any
 import numpy as np
 
 from ccm.core.errors import ConfigError, check_keys
-from ccm.reporting.claim_stats import TESTS, decide, mean_ci
+from ccm.core.stats import mean_ci
+from ccm.reporting.claim_stats import TESTS, decide
 
 COMPARISONS = (
     "less_than", "ratio_at_most", "at_most", "at_least", "difference_at_most", "within",

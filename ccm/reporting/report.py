@@ -34,8 +34,8 @@ from typing import Any
 
 from ccm.core.errors import ConfigError
 from ccm.core.records import read_json_object, write_atomic
+from ccm.core.stats import t95
 from ccm.experiment.config_check import check_output_dir
-from ccm.reporting.claim_stats import t95
 from ccm.reporting.claims import Verdict, evaluate, load_claims
 from ccm.reporting.report_media import animations_section
 from ccm.reporting.report_screen import SetAside, screen, tally

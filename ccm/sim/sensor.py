@@ -12,6 +12,7 @@ hence the zero defaults.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -66,6 +67,10 @@ class SensorConfig:
             force spike of ±spike_N on every axis (random signs).
         dropout_prob, dropout_steps: with this probability per sample the sensor stops
             updating and repeats its last reading for dropout_steps samples.
+        delay_steps: latency: each reading reaches the controller this many samples (control
+            steps) late; until that many samples exist, the first reading is repeated. It
+            models a sensor or an external-control interface that delivers late (seed B's
+            force latency, ``mpc_contact_latency``, for any controller).
         Faults are off by default and consume no random numbers then.
     """
 
@@ -77,6 +82,7 @@ class SensorConfig:
     spike_N: float = 0.0
     dropout_prob: float = 0.0
     dropout_steps: int = 0
+    delay_steps: int = 0
 
     @property
     def force_dim(self) -> int:
@@ -105,9 +111,11 @@ class SensorConfig:
         spike_N: float = 0.0,
         dropout_prob: float = 0.0,
         dropout_steps: int = 0,
+        delay_steps: int = 0,
     ) -> SensorConfig:
         """Build from scalars (broadcast to every axis) or per-axis sequences, validating."""
         return cls(
+            delay_steps=check_int_nonneg(f"{prefix}.delay_steps", delay_steps),
             spike_prob=check_range(f"{prefix}.spike_prob", spike_prob, 0.0, 1.0),
             spike_N=check_range(f"{prefix}.spike_N", spike_N, 0.0, FORCE_LIMIT_N),
             dropout_prob=check_range(f"{prefix}.dropout_prob", dropout_prob, 0.0, 1.0),
@@ -137,7 +145,8 @@ class SensorConfig:
         """
 
         allowed = ("force_noise_std", "torque_noise_std", "force_bias", "torque_bias",
-                   "spike_prob", "spike_N", "dropout_prob", "dropout_steps")  # fmt: skip
+                   "spike_prob", "spike_N", "dropout_prob", "dropout_steps",
+                   "delay_steps")  # fmt: skip
         d = to_plain(cfg, prefix)
         check_keys(prefix, d, allowed)
         return cls.from_values(
@@ -196,6 +205,7 @@ class FTSensor:
                 or np.any(self._t_bias)
             )
             and not self._faults
+            and not self.config.delay_steps
         )
         self._rng: np.random.Generator | None = None
         self._held: tuple[np.ndarray, np.ndarray] | None = None
@@ -205,6 +215,7 @@ class FTSensor:
         self._width = force_dim * self._noisy_force + torque_dim * self._noisy_torque
         self._ahead = np.empty((0, self._width))
         self._row = 0
+        self._late: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=c.delay_steps + 1)
 
     @property
     def ideal(self) -> bool:
@@ -221,6 +232,7 @@ class FTSensor:
         self._rng = rng
         self._held, self._hold_left = None, 0
         self._ahead, self._row = self._ahead[:0], 0
+        self._late.clear()
 
     def measure(self, force: np.ndarray, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return the measured ``(force, torque)`` for the true external wrench.
@@ -234,8 +246,17 @@ class FTSensor:
             torque: true external torque, shape (r,).
 
         Returns:
-            New arrays ``(force_measured, torque_measured)``.
+            New arrays ``(force_measured, torque_measured)``; with ``delay_steps`` = d, the
+            reading of d calls earlier (the first reading while fewer calls were made).
         """
+        if not self.config.delay_steps:
+            return self._measure_now(force, torque)
+        self._late.append(self._measure_now(force, torque))
+        f, t = self._late[0]
+        return f.copy(), t.copy()
+
+    def _measure_now(self, force: np.ndarray, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """This sample's reading of the true wrench (:meth:`measure` without the delay)."""
         if self._ideal:
             if isinstance(force, np.ndarray) and force.shape == (self.force_dim,):
                 if isinstance(torque, np.ndarray) and torque.shape == (self.torque_dim,):

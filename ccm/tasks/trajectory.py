@@ -26,6 +26,7 @@ from ccm.core.errors import (
     check_positive,
     check_vector,
 )
+from ccm.core.plugins import accepts_key, available, call_plugin, resolve_class
 from ccm.core.types import TargetSample
 from ccm.core.vector import readonly
 from ccm.tasks.segments import (
@@ -211,6 +212,14 @@ class MotionPattern:
 
 
 _TYPES = ("line", "arc", "hold", "recording")
+#: the built-in segment types as import paths (for :func:`segment_class`'s errors and
+#: ``ccm list``); a plugin segment is ``_target_: module:Class`` or a ``ccm.segments`` name
+SEGMENTS: dict[str, str] = {
+    "line": "ccm.tasks.segments:LineSegment",
+    "arc": "ccm.tasks.segments:ArcSegment",
+    "hold": "ccm.tasks.segments:HoldSegment",
+    "recording": "ccm.tasks.recording:RecordingSegment",
+}
 _COMMON_KEYS = ("type", "duration", "steps", "force", "name")
 _TYPE_KEYS: dict[str, tuple[str, ...]] = {
     "line": ("to", "end_speed"),
@@ -314,9 +323,12 @@ def _segment(k: str, entry: Any, start: np.ndarray, control_dt: float) -> Segmen
     if not isinstance(entry, Mapping):
         raise ConfigError(k, f"must be a mapping, got {entry!r}")
     kind = entry.get("type")
-    if kind not in _TYPES:
-        shown = "missing" if kind is None else f"unknown value {kind!r}"
-        raise ConfigError(f"{k}.type", f"{shown}; allowed: {', '.join(_TYPES)}")
+    if kind is None and entry.get("_target_") is None:
+        raise ConfigError(
+            f"{k}.type", f"missing; allowed: {', '.join(available('segment', SEGMENTS))}"
+        )
+    if kind not in _TYPES or entry.get("_target_") is not None:
+        return _plugin(k, entry, start, control_dt)
     if kind == "recording":
         return _recording(k, entry, start)
     check_keys(k, entry, _COMMON_KEYS + _TYPE_KEYS[kind])
@@ -339,6 +351,32 @@ def _segment(k: str, entry: Any, start: np.ndarray, control_dt: float) -> Segmen
             force_dir, force_mag, name, key=k, sweep_key="sweep_deg",
         )  # fmt: skip
     return HoldSegment(start, duration, force_dir, force_mag, name, key=k)
+
+
+def segment_class(entry: Mapping[str, Any], key: str) -> tuple[type[Segment], str]:
+    """The class of a plugin segment entry (its ``_target_``, or a ``type`` that an installed
+    package registers under ``ccm.segments``) and its label; errors name ``key``."""
+    return resolve_class("segment", entry, "type", SEGMENTS, key, Segment)
+
+
+def _plugin(k: str, entry: Mapping[str, Any], start: np.ndarray, control_dt: float) -> Segment:
+    """A segment from outside ccm: ``cls(start, duration, force_dir, force_mag, name,
+    **params)``, params being the entry's other keys (``key=`` too if it takes one). The
+    class subclasses :class:`ccm.tasks.segments.Segment` (it gives ``_coeffs`` and
+    ``_coeffs_many`` on a basis and calls ``_finish``)."""
+    cls, label = segment_class(entry, k)
+    dim = start.shape[0]
+    params = {p: v for p, v in entry.items() if p not in (*_COMMON_KEYS, "_target_")}
+    force_dir, force_mag = _parse_force(f"{k}.force", entry.get("force"), dim)
+    name = None if entry.get("name") is None else str(entry["name"])
+    if accepts_key(cls):
+        params["key"] = k
+    seg = call_plugin(label, k, cls, start.copy(), _parse_duration(k, entry, control_dt),
+                      force_dir, force_mag, name, **params)  # fmt: skip
+    if not np.allclose(seg.start, start, atol=1e-9):
+        raise ConfigError(k, f"plugin {label!r} starts at {seg.start.tolist()}, not where the "
+                          f"previous segment ends ({start.tolist()})")  # fmt: skip
+    return seg
 
 
 def _recording(k: str, entry: Mapping[str, Any], start: np.ndarray) -> Segment:
