@@ -25,12 +25,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ccm.sim.pybullet.dynamics import PandaDynamics, link_inertials, robot_dynamics
+from ccm.sim.panda import GRAVITY, link_inertials, robot_urdf
+from ccm.sim.pybullet.dynamics import PandaDynamics, robot_dynamics
 from ccm.sim.pybullet.robot import (
-    GRAVITY,
     inverse_dynamics,
     load_robot,
-    robot_urdf,
     task_inertia,
     tool_jacobian,
     tool_point_in_link,

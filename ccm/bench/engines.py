@@ -74,7 +74,7 @@ def raw_reset_cpu(sim: Any, repeats: int = 3) -> float:
         return 0.0
     import tempfile
 
-    from ccm.sim.pybullet.robot import robot_urdf
+    from ccm.sim.panda import robot_urdf
 
     sim.reset(seed=0)
     p, cid = sim._p, sim._client

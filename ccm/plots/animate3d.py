@@ -1,7 +1,7 @@
 """3D animation of a PyBullet trial: the recorded joint states replayed and rendered offscreen.
 
 A DIRECT PyBullet client loads the Panda with its visual meshes and the block tool
-(:func:`ccm.sim.pybullet.robot.robot_urdf`, ``visuals=True``: the simulator itself leaves them
+(:func:`ccm.sim.panda.robot_urdf`, ``visuals=True``: the simulator itself leaves them
 out) and draws the scene as visual-only boxes: the table, its friction patches (blue) and the
 static boxes (walls). For each frame the arm's joints are set to the recorded angles
 (``truth_q1_rad`` ... ``truth_q7_rad``, :class:`ccm.sim.pybullet.backend.PyBullet3D` records
@@ -23,7 +23,7 @@ import numpy as np
 
 from ccm.core.errors import ConfigError
 from ccm.plots.frames import AnimateSettings, frame_steps, nice_scale, overlay_text
-from ccm.sim.pybullet.robot import N_ARM, robot_urdf
+from ccm.sim.panda import N_ARM, robot_urdf
 from ccm.sim.pybullet.scene import PyBullet3DConfig, Scene3D
 
 #: the recorded joint angle columns [rad] (``StepInfo.extra`` keys ``q1_rad`` ... ``q7_rad``)

@@ -29,13 +29,10 @@ from ccm.core.errors import ConfigError, SimulationDiverged, check_vector
 from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim.base import Simulator, all_finite
 from ccm.sim.hand import Hand
+from ccm.sim.panda import DOWN, GRAVITY, N_ARM, box_inertia
 from ccm.sim.pybullet._kernels import tool_sense
 from ccm.sim.pybullet.footprint import TableFriction
 from ccm.sim.pybullet.robot import (
-    DOWN,
-    GRAVITY,
-    N_ARM,
-    box_inertia,
     contact_truth,
     load_robot,
     orientation_error,

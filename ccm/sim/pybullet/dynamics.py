@@ -53,35 +53,10 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import lapack
 
-from ccm.sim.pybullet.robot import GRAVITY, N_ARM, robot_urdf
-from ccm.sim.pybullet.scene import ToolSpec
+from ccm.sim.panda import GRAVITY, N_ARM, LinkInertial, ToolSpec, link_inertials, robot_urdf
 
 _TOOL_POINT = "ccm_tool_point"  # the name of the added frame
 _ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, N_ARM + 1))
-
-
-@dataclass(frozen=True)
-class LinkInertial:
-    """A link's mass distribution in its URDF link frame, as PyBullet reports it.
-
-    Attributes:
-        mass: [kg].
-        com: centre of mass in the link frame [m], (3,).
-        orientation: the principal axes in the link frame, a quaternion (x, y, z, w).
-        principal: principal moments of inertia about the centre of mass [kg m²], (3,).
-    """
-
-    mass: float
-    com: tuple[float, float, float]
-    orientation: tuple[float, float, float, float]
-    principal: tuple[float, float, float]
-
-    def to_pinocchio(self) -> pin.Inertia:
-        """The spatial inertia about the link frame's origin (Pinocchio's ``Inertia``)."""
-        x, y, z, w = self.orientation
-        rot = pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
-        inertia = rot @ np.diag(self.principal) @ rot.T  # about the centre of mass, link axes
-        return pin.Inertia(float(self.mass), np.asarray(self.com, float), inertia)
 
 
 @dataclass(frozen=True, slots=True)
@@ -197,6 +172,14 @@ class PandaDynamics:
         return lam if info == 0 else np.linalg.pinv(mobility)
 
 
+def _pin_inertia(link: LinkInertial) -> pin.Inertia:
+    """A link's spatial inertia about its frame's origin (Pinocchio's ``Inertia``)."""
+    x, y, z, w = link.orientation
+    rot = pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
+    inertia = rot @ np.diag(link.principal) @ rot.T  # about the centre of mass, link axes
+    return pin.Inertia(float(link.mass), np.asarray(link.com, float), inertia)
+
+
 def _replace_inertias(model: pin.Model, inertials: Mapping[str, LinkInertial]) -> None:
     """Rebuild every moving joint's body inertia from its links' ``inertials``."""
     for j in range(1, model.njoints):
@@ -206,20 +189,8 @@ def _replace_inertias(model: pin.Model, inertials: Mapping[str, LinkInertial]) -
             continue  # the fixed base does not move
         if frame.name not in inertials:
             raise ValueError(f"no inertial given for the moving link {frame.name!r}")
-        body = frame.placement.act(inertials[frame.name].to_pinocchio())
+        body = frame.placement.act(_pin_inertia(inertials[frame.name]))
         model.inertias[frame.parentJoint] = model.inertias[frame.parentJoint] + body
-
-
-def link_inertials(p: Any, cid: int, robot: int) -> dict[str, LinkInertial]:
-    """The inertials PyBullet simulates each link of ``robot`` with (not the base), by link
-    name: the URDF's mass and centre of mass, principal moments from the collision shape
-    (:mod:`ccm.sim.pybullet.dynamics` explains why this matters)."""
-    out = {}
-    for j in range(p.getNumJoints(robot, physicsClientId=cid)):
-        name = p.getJointInfo(robot, j, physicsClientId=cid)[12].decode()
-        mass, _, principal, com, orn = p.getDynamicsInfo(robot, j, physicsClientId=cid)[:5]
-        out[name] = LinkInertial(mass, tuple(com), tuple(orn), tuple(principal))
-    return out
 
 
 def robot_dynamics(

@@ -1,11 +1,11 @@
 """The Panda with its block tool for the PyBullet 3D backend (:mod:`ccm.sim.pybullet.backend`).
 
-URDF preparation (fingers removed, the block tool fixed to ``panda_hand``), loading, and the
-kinematics/dynamics helpers of the backend's torque loop and sensing: tool-point state and
-Jacobian, start-pose inverse kinematics, inverse dynamics, task-space inertia and the
-dynamically consistent null-space projection, orientation error, F/T gravity compensation
-and the contact ground truth. Functions take the PyBullet module ``p`` and the physics client
-id ``cid`` explicitly.
+Loading the Panda of :mod:`ccm.sim.panda` (its URDF: fingers removed, the block tool fixed
+to ``panda_hand``) into PyBullet, and the kinematics/dynamics helpers of the backend's torque
+loop and sensing: tool-point state and Jacobian, start-pose inverse kinematics, inverse
+dynamics, task-space inertia and the dynamically consistent null-space projection,
+orientation error, F/T gravity compensation and the contact ground truth. Functions take the
+PyBullet module ``p`` and the physics client id ``cid`` explicitly.
 
 Modelling choices (the torque loop and the table patches are described in
 :mod:`ccm.sim.pybullet.backend`):
@@ -59,25 +59,17 @@ Modelling choices (the torque loop and the table patches are described in
 from __future__ import annotations
 
 import math
-import os
 import shutil
 import tempfile
-import xml.etree.ElementTree as ET
 from collections.abc import Container, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from ccm.core.errors import ConfigError
+from ccm.sim.panda import N_ARM, robot_urdf
 from ccm.sim.pybullet import _kernels as _k
-from ccm.sim.pybullet.scene import PyBullet3DConfig, ToolSpec
-
-GRAVITY = 9.81  # m/s^2, along -z
-N_ARM = 7  # Panda arm joints (the only movable joints once the fingers are removed)
-#: tool pointing straight down: 180° about x, quaternion (x, y, z, w)
-DOWN = (1.0, 0.0, 0.0, 0.0)
-_TOOL_MOUNT_Z = 0.0584  # m, where the fingers attach in panda_hand's frame (panda.urdf)
-
+from ccm.sim.pybullet.scene import PyBullet3DConfig
 
 # --------------------------------------------------------------------------- math helpers
 
@@ -96,64 +88,6 @@ def orientation_error(q_des: Sequence[float], q: Sequence[float]) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- robot
-
-
-def robot_urdf(tool: ToolSpec, directory: str, visuals: bool = True) -> str:
-    """Write panda.urdf without fingers and with the block tool; return its path.
-
-    ``visuals=False`` leaves out every ``<visual>`` element: the ~9 MB of visual meshes are
-    what made ``loadURDF`` slow (~0.1-1.5 s per trial, depending on load), and nothing but
-    rendering reads them (inertias come from the ``<inertial>`` masses and the collision
-    shapes, contacts from the collision shapes)."""
-    import pybullet_data
-
-    src_dir = os.path.join(pybullet_data.getDataPath(), "franka_panda")
-    tree = ET.parse(os.path.join(src_dir, "panda.urdf"))
-    root = tree.getroot()
-    drop = {"panda_leftfinger", "panda_rightfinger", "panda_grasptarget"}
-    for el in list(root):
-        if el.tag == "link" and el.get("name") in drop:
-            root.remove(el)
-        elif el.tag == "joint":
-            child = el.find("child")
-            if child is not None and child.get("link") in drop:
-                root.remove(el)
-    if not visuals:
-        for link in root.iter("link"):
-            for vis in link.findall("visual"):
-                link.remove(vis)
-    for mesh in root.iter("mesh"):
-        fn = mesh.get("filename", "")
-        if fn.startswith("package://"):
-            mesh.set("filename", os.path.join(src_dir, fn[len("package://") :]))
-    sx, sy, sz = tool.size
-    m = tool.mass
-    ixx, iyy, izz = box_inertia(m, tool.size)
-    box = f'<geometry><box size="{sx} {sy} {sz}"/></geometry>'
-    origin = f'<origin rpy="0 0 0" xyz="0 0 {sz / 2}"/>'
-    root.append(
-        ET.fromstring(
-            f'<link name="ccm_tool"><inertial>{origin}<mass value="{m}"/>'
-            f'<inertia ixx="{ixx}" ixy="0" ixz="0" iyy="{iyy}" iyz="0" izz="{izz}"/>'
-            "</inertial>"
-            + (
-                f"<visual>{origin}{box}"
-                '<material name="ccm_tool"><color rgba="0.9 0.4 0.1 1"/></material></visual>'
-                if visuals
-                else ""
-            )
-            + f"<collision>{origin}{box}</collision></link>"
-        )
-    )
-    root.append(
-        ET.fromstring(
-            '<joint name="ccm_tool_joint" type="fixed"><parent link="panda_hand"/>'
-            f'<child link="ccm_tool"/><origin rpy="0 0 0" xyz="0 0 {_TOOL_MOUNT_Z}"/></joint>'
-        )
-    )
-    path = os.path.join(directory, "panda_ccm_tool.urdf")
-    tree.write(path)
-    return path
 
 
 def load_robot(p: Any, cid: int, config: PyBullet3DConfig) -> tuple[int, int]:
@@ -365,12 +299,6 @@ def nullspace_projection(
 
 
 # --------------------------------------------------------------------------- sensing
-
-
-def box_inertia(mass: float, size: Sequence[float]) -> tuple[float, float, float]:
-    """Principal moments of inertia [kg m²] of a solid box about its centre."""
-    sx, sy, sz = size
-    return (mass * (sy**2 + sz**2) / 12, mass * (sx**2 + sz**2) / 12, mass * (sx**2 + sy**2) / 12)
 
 
 def contact_truth(

@@ -29,6 +29,7 @@ from ccm.core.errors import (
 from ccm.core.fields import checked, field_values, nested, one_of, vector
 from ccm.sim.base import OTHER_SIM_KEYS
 from ccm.sim.hand import HandSpec
+from ccm.sim.panda import ToolSpec
 from ccm.sim.sensor import SensorConfig
 
 #: Franka's documented "ready" pose, used as IK seed and default rest posture [rad]
@@ -44,23 +45,6 @@ DYNAMICS = ("pinocchio", "pybullet")
 
 def _restitution(key: str, value: Any) -> float:
     return check_range(key, value, 0.0, 1.0)
-
-
-@dataclass(frozen=True)
-class ToolSpec:
-    """The rigid block fixed to the flange.
-
-    Attributes:
-        size: full extents [m] along the tool frame's x, y, z (z along the flange axis).
-        mass: [kg] > 0.
-    """
-
-    size: tuple[float, float, float] = checked(vector(3, positive=True), (0.04, 0.04, 0.04))
-    mass: float = checked(check_positive, 0.15)
-
-    @classmethod
-    def from_mapping(cls, cfg: Any, key: str) -> ToolSpec:
-        return cls(**field_values(cls, cfg, key)[0])
 
 
 @dataclass(frozen=True)

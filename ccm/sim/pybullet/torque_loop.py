@@ -33,10 +33,10 @@ from typing import Any
 
 import numpy as np
 
+from ccm.sim.panda import N_ARM
 from ccm.sim.pybullet._kernels import task_space, torque_law, translational_inertia
 from ccm.sim.pybullet.dynamics import PandaDynamics, robot_dynamics
 from ccm.sim.pybullet.robot import (
-    N_ARM,
     inverse_dynamics,
     nullspace_projection,
     orientation_error,

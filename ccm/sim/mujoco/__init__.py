@@ -1,0 +1,1 @@
+"""MuJoCo 3-D backend (issue #42): the Panda with ccm's block tool in MuJoCo."""
