@@ -55,7 +55,8 @@ def frames(
     three_d = name == "pybullet3d" or "pos_z" in log
     if three_d:
         from ccm.plots.animate3d import frames_3d
-        from ccm.sim.pybullet.scene import PyBullet3DConfig, Scene3D
+        from ccm.sim.pybullet.scene import PyBullet3DConfig
+        from ccm.sim.scene3d import Scene3D
 
         if isinstance(scene_cfg, Mapping):
             scene_cfg = Scene3D.from_mapping(scene_cfg, "task.scene")

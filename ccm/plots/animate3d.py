@@ -24,7 +24,8 @@ import numpy as np
 from ccm.core.errors import ConfigError
 from ccm.plots.frames import AnimateSettings, frame_steps, nice_scale, overlay_text
 from ccm.sim.panda import N_ARM, robot_urdf
-from ccm.sim.pybullet.scene import PyBullet3DConfig, Scene3D
+from ccm.sim.pybullet.scene import PyBullet3DConfig
+from ccm.sim.scene3d import Scene3D
 
 #: the recorded joint angle columns [rad] (``StepInfo.extra`` keys ``q1_rad`` ... ``q7_rad``)
 JOINT_COLUMNS = tuple(f"truth_q{i}_rad" for i in range(1, N_ARM + 1))

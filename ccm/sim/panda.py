@@ -12,6 +12,7 @@ the tool's bottom face. Nothing here imports a physics engine at module level.
 from __future__ import annotations
 
 import functools
+import math
 import os
 import shutil
 import tempfile
@@ -28,6 +29,8 @@ N_ARM = 7  # Panda arm joints (the only movable joints once the fingers are remo
 #: tool pointing straight down: 180° about x, quaternion (x, y, z, w)
 DOWN = (1.0, 0.0, 0.0, 0.0)
 TOOL_MOUNT_Z = 0.0584  # m, where the fingers attach in panda_hand's frame (panda.urdf)
+#: Franka's documented "ready" pose, used as IK seed and default rest posture [rad]
+PANDA_READY = (0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4)
 
 
 @dataclass(frozen=True)

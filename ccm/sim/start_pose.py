@@ -50,7 +50,7 @@ def check_start_2d(scene: Any, start: Sequence[float], prefix: str = "task.scene
 
 def check_start_3d(scene: Any, point: Sequence[float], prefix: str = "task.scene") -> None:
     """Reject a 3D start whose tool point lies inside one of ``scene.boxes`` or the table
-    (:class:`ccm.sim.pybullet.scene.Scene3D`)."""
+    (:class:`ccm.sim.scene3d.Scene3D`)."""
     solids = [(f"{prefix}.boxes[{i}]", b.center, b.size) for i, b in enumerate(scene.boxes)]
     table = scene.table
     if table is not None:

@@ -29,7 +29,7 @@ from ccm.core.errors import ConfigError, SimulationDiverged, check_vector
 from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim.base import Simulator, all_finite
 from ccm.sim.hand import Hand
-from ccm.sim.panda import DOWN, GRAVITY, N_ARM, box_inertia
+from ccm.sim.panda import DOWN, GRAVITY, N_ARM, PANDA_READY, ToolSpec, box_inertia
 from ccm.sim.pybullet._kernels import tool_sense
 from ccm.sim.pybullet.footprint import TableFriction
 from ccm.sim.pybullet.robot import (
@@ -40,18 +40,10 @@ from ccm.sim.pybullet.robot import (
     start_ik,
     tool_point_in_link,
 )
-from ccm.sim.pybullet.scene import (
-    PANDA_READY,
-    PATCH_MODES,
-    Box3DSpec,
-    PyBullet3DConfig,
-    Scene3D,
-    TablePatch,
-    TableSpec,
-    ToolSpec,
-)
+from ccm.sim.pybullet.scene import PATCH_MODES, PyBullet3DConfig
 from ccm.sim.pybullet.torque_loop import TorqueLoop
 from ccm.sim.pybullet.world import build_world
+from ccm.sim.scene3d import Box3DSpec, Scene3D, TablePatch, TableSpec
 from ccm.sim.sensor import FTSensor
 from ccm.sim.start_pose import check_start_3d
 

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from ccm.sim.pybullet.scene import Scene3D, boxed_table_parts
+from ccm.sim.scene3d import Scene3D, boxed_table_parts
 
 _GREY = (0.6, 0.5, 0.4, 1.0)
 _BLUE = (0.2, 0.4, 0.8, 1.0)
