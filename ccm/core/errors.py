@@ -76,6 +76,11 @@ def check_range(key: str, value: Any, lo: float, hi: float) -> float:
     return out
 
 
+def check_restitution(key: str, value: Any) -> float:
+    """A coefficient of restitution, in [0, 1] (both backends' surfaces and boxes)."""
+    return check_range(key, value, 0.0, 1.0)
+
+
 def check_int_positive(key: str, value: Any) -> int:
     """Return ``value`` as an int >= 1."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer):

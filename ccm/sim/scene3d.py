@@ -16,16 +16,11 @@ from ccm.core.errors import (
     check_keys,
     check_nonneg,
     check_positive,
-    check_range,
+    check_restitution,
     to_plain,
 )
 from ccm.core.fields import checked, field_values, vector
 from ccm.sim.hand import HandSpec
-
-
-def _restitution(key: str, value: Any) -> float:
-    return check_range(key, value, 0.0, 1.0)
-
 
 # --------------------------------------------------------------------------- scene
 
@@ -63,7 +58,7 @@ class TableSpec:
     size: tuple[float, float] = checked(vector(2, positive=True), (0.8, 1.0))
     center: tuple[float, float] = checked(vector(2), (0.6, 0.0))
     friction: float = checked(check_nonneg, 0.5)
-    restitution: float = checked(_restitution, 0.0)
+    restitution: float = checked(check_restitution, 0.0)
     patches: tuple[TablePatch, ...] = ()
 
     @classmethod
@@ -106,7 +101,7 @@ class Box3DSpec:
     center: tuple[float, float, float] = checked(vector(3))
     size: tuple[float, float, float] = checked(vector(3, positive=True))
     friction: float = checked(check_nonneg, 0.5)
-    restitution: float = checked(_restitution, 0.0)
+    restitution: float = checked(check_restitution, 0.0)
 
     @classmethod
     def from_mapping(cls, cfg: Any, key: str) -> Box3DSpec:

@@ -13,7 +13,6 @@ from ccm.core.errors import (
     check_keys,
     check_nonneg,
     check_positive,
-    check_range,
     check_vector,
     to_plain,
 )
@@ -41,11 +40,6 @@ def nonneg_vec2(key: str, value: Any) -> Vec2:
     for i, v in enumerate(out):
         check_nonneg(f"{key}[{i}]", v)
     return out
-
-
-def check_restitution(key: str, value: Any) -> float:
-    """A coefficient of restitution, in [0, 1]."""
-    return check_range(key, value, 0.0, 1.0)
 
 
 def as_list(key: str, value: Any) -> list[Any]:

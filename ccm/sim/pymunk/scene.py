@@ -27,6 +27,7 @@ from ccm.core.errors import (
     check_keys,
     check_nonneg,
     check_positive,
+    check_restitution,
     to_plain,
 )
 from ccm.core.fields import checked, field_values, nested
@@ -35,7 +36,6 @@ from ccm.sim.pymunk.parse import (
     RegionSpec,
     Vec2,
     as_list,
-    check_restitution,
     positive_vec2,
     vec2,
 )
