@@ -97,7 +97,9 @@ def test_an_entry_is_ranked_against_the_stored_ones(tiny: Path, tmp_path: Path) 
     assert "| 1 | high |" in md and "pd (yours)" in md and "| low |" in md
     rows = list(csv.DictReader((out / "leaderboard.csv").open()))
     assert {r["entry"] for r in rows} == {"pd (yours)", "low", "high"}
-    assert "pd (yours)" in (out / "leaderboard.html").read_text()
+    html = (out / "leaderboard.html").read_text()
+    assert html.count("class='mine'") == 3  # its row in the overall table and in each task's
+    assert html.count("<tr class='mine'><td>pd (yours)</td>") == 2  # a task row starts with it
     figs = sorted(p.name for p in (out / "figures").glob("*.png"))
     assert figs == ["effort_Ns.png", "energy_J.png", "rms_tracking_error_m.png"]
     # the stiffer preset tracks better on the springs: the ranking reads the numbers

@@ -104,7 +104,7 @@ def html_page(board: Board, mine: str | None) -> str:
         parts.append(f"<h2>{html.escape(title)}</h2><p>{html.escape(note)}</p><table><tr>")
         parts.append("".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>")
         for r in rows:
-            cls = " class='mine'" if mine and any(c == f"{mine} (yours)" for c in r) else ""
+            cls = " class='mine'" if mine is not None and mine in r else ""
             parts.append(f"<tr{cls}>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>")
         parts.append("</table>")
     parts.append("</body></html>")
