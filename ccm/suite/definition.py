@@ -18,7 +18,13 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf, open_dict
 
-from ccm.core.errors import ConfigError, check_int_nonneg, check_int_positive, to_plain
+from ccm.core.errors import (
+    ConfigError,
+    check_int_nonneg,
+    check_int_positive,
+    check_nonneg,
+    to_plain,
+)
 from ccm.experiment.user_configs import config_dir
 
 #: the suite ``ccm suite`` runs when none is named
@@ -51,6 +57,8 @@ class Suite:
     seeds: tuple[int, ...]
     warmup_trials: int
     scored_trials: int
+    settle_time_s: float  # s after the pattern's end (completion-time window)
+    max_retime_s: float  # s a re-timing controller may lengthen a trial by
     metrics: Mapping[str, Mapping[str, str]]  # name -> {label, unit}
     tasks: Mapping[str, SuiteTask] = field(default_factory=dict)
     #: the built-in entries whose results are stored: name -> controller overrides
@@ -91,6 +99,8 @@ def load_suite(name: str = DEFAULT_SUITE) -> Suite:
         seeds=tuple(seeds),
         warmup_trials=check_int_nonneg(f"{key}.warmup_trials", raw.get("warmup_trials", 0)),
         scored_trials=check_int_positive(f"{key}.scored_trials", raw.get("scored_trials", 1)),
+        settle_time_s=check_nonneg(f"{key}.settle_time_s", raw.get("settle_time_s", 0.5)),
+        max_retime_s=check_nonneg(f"{key}.max_retime_s", raw.get("max_retime_s", 60.0)),
         metrics=metrics,
         tasks=tasks,
         entries={str(k): tuple(map(str, v)) for k, v in (raw.get("entries") or {}).items()},
@@ -130,9 +140,9 @@ def protocol_experiment(suite: Suite, task: SuiteTask) -> dict[str, Any]:
         "conditions": {},
         "phases": phases,
         "metrics": ["suite", *task.extra_metrics],
-        "settle_time_s": 0.5,  # s, as configs/config.yaml (completion-time window)
+        "settle_time_s": suite.settle_time_s,
         "max_time_s": None,
-        "max_retime_s": 60.0,  # s, as configs/config.yaml
+        "max_retime_s": suite.max_retime_s,
         "fast": False,
         "figures": False,
         "timeseries": "none",
