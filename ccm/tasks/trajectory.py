@@ -211,7 +211,6 @@ class MotionPattern:
         return f"MotionPattern({len(self.segments)} segments, duration={self.duration} s)"
 
 
-_TYPES = ("line", "arc", "hold", "recording")
 #: the built-in segment types as import paths (for :func:`segment_class`'s errors and
 #: ``ccm list``); a plugin segment is ``_target_: module:Class`` or a ``ccm.segments`` name
 SEGMENTS: dict[str, str] = {
@@ -327,7 +326,7 @@ def _segment(k: str, entry: Any, start: np.ndarray, control_dt: float) -> Segmen
         raise ConfigError(
             f"{k}.type", f"missing; allowed: {', '.join(available('segment', SEGMENTS))}"
         )
-    if kind not in _TYPES or entry.get("_target_") is not None:
+    if kind not in SEGMENTS or entry.get("_target_") is not None:
         return _plugin(k, entry, start, control_dt)
     if kind == "recording":
         return _recording(k, entry, start)
