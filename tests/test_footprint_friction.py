@@ -1,5 +1,5 @@
 """The friction a tool face feels across a patch edge (``sim.patch_mode: footprint``,
-:mod:`ccm.sim.pybullet.footprint`): a ramp over the face's width, weighted by the pressure,
+:mod:`ccm.sim.footprint`): a ramp over the face's width, weighted by the pressure,
 where ``friction_map`` switches in one step at the tool point (issue #17 item 5)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.sim.pybullet.footprint import face_grid, footprint_friction, table_friction
+from ccm.sim.footprint import face_grid, footprint_friction, table_friction
 
 W = 0.04  # m, the default tool face
 EDGE = 0.5  # m, the patch starts here along x

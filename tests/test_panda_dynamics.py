@@ -175,8 +175,8 @@ def test_the_torque_bench_times_both_paths() -> None:
 
 
 def test_compiled_torque_law_matches_the_numpy_law(robot: Robot) -> None:
-    """:func:`ccm.sim.pybullet._kernels.torque_law` on :meth:`PandaDynamics.torque_terms`
-    (with :func:`~ccm.sim.pybullet._kernels.task_space`) against the torque law written in
+    """:func:`ccm.sim._kernels.torque_law` on :meth:`PandaDynamics.torque_terms`
+    (with :func:`~ccm.sim._kernels.task_space`) against the torque law written in
     numpy on :meth:`PandaDynamics.compute`'s terms (the form ``TorqueLoop._torques_pybullet``
     uses): ``τ = Jᵀ [f; m + m_hold] + h − Jᵀ Λ J̇ q̇ + N τ₀``, with a random
     wrench, orientation hold and posture term at every sample.
@@ -184,7 +184,7 @@ def test_compiled_torque_law_matches_the_numpy_law(robot: Robot) -> None:
     Tolerance: relative 1e-9 of max |τ|. The two compute Λ by different Cholesky codes (plain
     loops vs LAPACK), so they differ by rounding times cond(J M⁻¹ Jᵀ) (up to ~7e5 here).
     """
-    from ccm.sim.pybullet._kernels import orientation_error, task_space, torque_law
+    from ccm.sim._kernels import orientation_error, task_space, torque_law
 
     rng = np.random.default_rng(7)
     worst = 0.0

@@ -15,7 +15,7 @@ described in :mod:`ccm.sim.pybullet.robot`):
   orientation hold, and its model terms from Pinocchio or PyBullet). Link and joint damping
   are set to 0 so the compensation is exact.
 * **Table patches** (``patch_mode``: ``friction_map``, ``boxes`` or ``footprint``): the
-  friction under the tool (:class:`ccm.sim.pybullet.footprint.TableFriction`).
+  friction under the tool (:class:`ccm.sim.footprint.TableFriction`).
 """
 
 from __future__ import annotations
@@ -27,11 +27,11 @@ import numpy as np
 
 from ccm.core.errors import ConfigError, SimulationDiverged, check_vector
 from ccm.core.types import Command, Observation, StepInfo
+from ccm.sim._kernels import tool_sense
 from ccm.sim.base import Simulator, all_finite
+from ccm.sim.footprint import TableFriction
 from ccm.sim.hand import Hand
 from ccm.sim.panda import DOWN, GRAVITY, N_ARM, PANDA_READY, ToolSpec, box_inertia
-from ccm.sim.pybullet._kernels import tool_sense
-from ccm.sim.pybullet.footprint import TableFriction
 from ccm.sim.pybullet.robot import (
     contact_truth,
     load_robot,
@@ -116,6 +116,7 @@ class PyBullet3D(Simulator):
         self._dq: np.ndarray | None = None
         self._body_friction: dict[int, float] = {}
         self._box_bodies: set[int] = set()
+        self._table_body = -1
         base_mu = scene.table.friction if scene.table is not None else 0.0
         face = (tool.size[0], tool.size[1])  # the tool point's face [m] (footprint)
         #: the table's friction under the tool, set before every physics step
@@ -279,11 +280,17 @@ class PyBullet3D(Simulator):
         world = build_world(self._p, self._client, self.scene, cfg.patch_mode, cfg.gui)
         self._body_friction = world.body_friction
         self._box_bodies = world.box_bodies
-        self.table.attach(world)
+        self._table_body = world.table_body
+        self.table.attach(world.patch_map, world.table_mu)
 
     def _update_patch_friction(self) -> None:
         """The table's friction for the next physics step (:class:`TableFriction`)."""
-        self.table.update(self._p, self._client, self._tip[0], self._rot[:, :2])
+        mu = self.table.update(self._tip[0], self._rot[:, :2])
+        if mu is not None:
+            self._p.changeDynamics(
+                self._table_body, -1, lateralFriction=mu, physicsClientId=self._client
+            )
+            self._body_friction[self._table_body] = mu  # for the contact truth
 
     def _place_at_start(self) -> None:
         """Put the arm at rest in the start pose (IK seeded from the rest posture)."""
@@ -322,7 +329,7 @@ class PyBullet3D(Simulator):
         velocity, shared by every use within the step (patch friction, orientation hold,
         truth, observation), and ``self._ft`` = the external force and moment at the tool
         point from the tool joint's F/T reading (Newton–Euler balance of the tool,
-        :func:`ccm.sim.pybullet._kernels.tool_sense`)."""
+        :func:`ccm.sim._kernels.tool_sense`)."""
         p, cid, robot, link = self._p, self._client, self._robot, self._tool_link
         ls = p.getLinkState(robot, link, 1, 1, physicsClientId=cid)
         # one query for the arm's encoders and the tool joint's F/T reading (its last entry)
@@ -358,7 +365,8 @@ class PyBullet3D(Simulator):
         (:func:`ccm.sim.pybullet.robot.contact_truth`)."""
         p, cid = self._p, self._client
         pts = p.getContactPoints(bodyA=self._robot, linkIndexA=self._tool_link, physicsClientId=cid)
-        self.table.observe(pts)  # for the next step's footprint friction
+        if self.table.patches:  # the table contacts, for the next step's footprint friction
+            self.table.observe([(c[6], c[9]) for c in pts if c[2] == self._table_body])
         if not pts:
             return np.zeros(3), np.zeros(3), 0, -1.0, np.zeros(6)
         tip = self._tip[0]

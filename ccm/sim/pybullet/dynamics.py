@@ -154,7 +154,7 @@ class PandaDynamics:
         self, q: np.ndarray, dq: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(M⁻¹, J, J̇ q̇, h)`` at ``(q, q̇)``: what the compiled torque law
-        (:func:`ccm.sim.pybullet._kernels.torque_law`) needs, with no copies or Python-side
+        (:func:`ccm.sim._kernels.torque_law`) needs, with no copies or Python-side
         algebra (the per-step path; :meth:`compute` gives every term)."""
         model, data, frame = self.model, self._data, self._frame
         pin.computeAllTerms(model, data, q, dq)

@@ -66,9 +66,9 @@ from typing import Any
 
 import numpy as np
 
-from ccm.core.errors import ConfigError
+from ccm.sim import _kernels as _k
+from ccm.sim.arm import dls_ik
 from ccm.sim.panda import N_ARM, robot_urdf
-from ccm.sim.pybullet import _kernels as _k
 from ccm.sim.pybullet.scene import PyBullet3DConfig
 
 # --------------------------------------------------------------------------- math helpers
@@ -76,14 +76,14 @@ from ccm.sim.pybullet.scene import PyBullet3DConfig
 
 def _quat_rotate(q: Sequence[float], v: Sequence[float]) -> tuple[float, float, float]:
     """Rotate ``v`` by the unit quaternion ``q`` (x, y, z, w)
-    (:func:`ccm.sim.pybullet._kernels.quat_rotate`)."""
+    (:func:`ccm.sim._kernels.quat_rotate`)."""
     x, y, z = _k.quat_rotate(np.asarray(q, dtype=float), np.asarray(v, dtype=float)).tolist()
     return x, y, z
 
 
 def orientation_error(q_des: Sequence[float], q: Sequence[float]) -> np.ndarray:
     """Rotation vector [rad] (world frame) that takes orientation ``q`` to ``q_des``
-    (:func:`ccm.sim.pybullet._kernels.orientation_error`)."""
+    (:func:`ccm.sim._kernels.orientation_error`)."""
     return _k.orientation_error(np.asarray(q_des, dtype=float), np.asarray(q, dtype=float))
 
 
@@ -221,42 +221,26 @@ def start_ik(
     position: np.ndarray,
     orientation: np.ndarray,
 ) -> np.ndarray:
-    """Damped least-squares IK of the tool point to a start pose, seeded from ``q_seed``.
-
-    Moves the arm while iterating. Returns the joint angles [rad], shape (7,).
+    """The start pose's joint angles [rad], (7,), by :func:`ccm.sim.arm.dls_ik` seeded from
+    ``q_seed``, on PyBullet's kinematics (moves the arm while iterating).
 
     Raises:
         ConfigError: on ``task.start`` if the pose is not reachable or needs a joint angle
             outside its limits.
     """
-    q = np.array(q_seed, dtype=float)
     tip_link = tool_point_in_link(p, cid, robot, tool_link, tip_local)
-    lam2 = 1e-4
-    for _ in range(300):
+
+    def pose(q: np.ndarray) -> tuple[np.ndarray, Any]:
         set_joint_positions(p, cid, robot, q)
         pos, orn, _, _, _ = tool_point_state(p, cid, robot, tool_link, tip_local, velocity=False)
-        e = np.concatenate([position - pos, orientation_error(orientation, orn)])
-        if float(np.max(np.abs(e))) < 1e-7:
-            break
-        jac = tool_jacobian(p, cid, robot, tool_link, tip_link, q, np.zeros(N_ARM))
-        dq = jac.T @ np.linalg.solve(jac @ jac.T + lam2 * np.eye(6), e)
-        q = q + dq
-    else:
-        raise ConfigError(
-            "task.start",
-            f"pose {np.round(position, 4).tolist()} is not reachable by the "
-            f"Panda tool (IK residual {float(np.linalg.norm(e)):.3g})",
-        )
-    for j in range(N_ARM):
-        lo, hi = p.getJointInfo(robot, j, physicsClientId=cid)[8:10]
-        if not lo - 1e-6 <= q[j] <= hi + 1e-6:
-            raise ConfigError(
-                "task.start",
-                f"pose {np.round(position, 4).tolist()} needs panda_joint{j + 1} "
-                f"= {q[j]:.3f} rad, outside its limits [{lo:.3f}, {hi:.3f}] "
-                "(try another start or sim.rest_posture)",
-            )
-    return q
+        return pos, orn
+
+    def jacobian(q: np.ndarray) -> np.ndarray:
+        return tool_jacobian(p, cid, robot, tool_link, tip_link, q, np.zeros(N_ARM))
+
+    info = [p.getJointInfo(robot, j, physicsClientId=cid)[8:10] for j in range(N_ARM)]
+    limits = (np.array([lo for lo, _ in info]), np.array([hi for _, hi in info]))
+    return dls_ik(pose, jacobian, limits, q_seed, position, orientation)
 
 
 # --------------------------------------------------------------------------- dynamics

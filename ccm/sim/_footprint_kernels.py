@@ -1,4 +1,4 @@
-"""Compiled per-cell loops of :mod:`ccm.sim.pybullet.footprint` (issue #20).
+"""Compiled per-cell loops of :mod:`ccm.sim.footprint` (issue #20).
 
 The footprint friction visits every cell of an n × n grid over the tool face (n = 32 by
 default: 1024 cells) once per physics step; as numpy expressions that was ~4 boolean arrays

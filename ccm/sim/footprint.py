@@ -12,9 +12,9 @@ area of μ(x) p(x) dA, all along the one sliding direction, so the face feels
 
     μ_eff = ∫ μ(x) p(x) dA / ∫ p(x) dA                                   (1)
 
-(p the contact pressure). PyBullet reports a flat box-on-box contact as the corners of the
-contact polygon (four points with normal forces N_i) and sets friction per body, not per
-point. The four corner forces are the solver's representation of the pressure's resultant
+(p the contact pressure). PyBullet (like MuJoCo) reports a flat box-on-box contact as the corners of
+the contact polygon (four points with normal forces N_i) and sets friction per body (geom),
+not per point. The four corner forces are the solver's representation of the pressure's resultant
 N = Σ N_i and its centre of pressure c = Σ N_i r_i / N, not the pressure itself. A rigid face
 on an elastic foundation (Winkler) carries a pressure that is linear over the face; the linear
 pressure on a w × d rectangle with resultant N and centre of pressure c = (c_ξ, c_η) in face
@@ -48,8 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.sim.pybullet._footprint_kernels import cell_weights_and_friction, friction_at
-from ccm.sim.pybullet.world import World
+from ccm.sim._footprint_kernels import cell_weights_and_friction, friction_at
 
 #: a patch as ``(x0, x1, y0, y1, friction)`` [m, m, m, m, -]
 Patch = tuple[float, float, float, float, float]
@@ -133,7 +132,8 @@ def table_friction(
 
 
 class TableFriction:
-    """The table's friction, set before every physics step by ``sim.patch_mode``.
+    """The table's friction, set before every physics step by ``sim.patch_mode``; the engine
+    neutral part (each 3-D backend applies the value to its table and reports the contacts).
 
     ``friction_map`` (default): the table top is one box and, before every physics step, its
     friction is set to that of the patch under the tool point (the table's own value
@@ -141,13 +141,13 @@ class TableFriction:
     therefore gets one friction value while it straddles a patch edge, switching when the
     tool point crosses it. ``boxes``: each patch is a thin box flush with the top and the
     table's top layer is cut around the patches (cells of the grid spanned by the patch
-    edges, :mod:`ccm.sim.pybullet.world`); geometrically faithful, but the tool face, sunk
-    slightly into the surface it rests on, catches on the side face of the next box:
-    normal-force spikes of 57-136 N at a 10 N press were measured at edge crossings
-    (friction_map: one ~26 N, 7 ms transient from the friction step itself); nothing is set
-    per step. ``footprint``: the continuous top of ``friction_map``, its friction μ_eff of
-    (1) under the tool's face from the previous step's table contacts, so it ramps across a
-    patch edge over the face's width (module docstring).
+    edges, :func:`ccm.sim.scene3d.boxed_table_parts`); geometrically faithful, but the tool
+    face, sunk slightly into the surface it rests on, catches on the side face of the next
+    box: normal-force spikes of 57-136 N at a 10 N press were measured at edge crossings in
+    PyBullet (friction_map: one ~26 N, 7 ms transient from the friction step itself); nothing
+    is set per step. ``footprint``: the continuous top of ``friction_map``, its friction
+    μ_eff of (1) under the tool's face from the previous step's table contacts, so it ramps
+    across a patch edge over the face's width (module docstring).
 
     Args:
         mode: ``sim.patch_mode``.
@@ -159,35 +159,34 @@ class TableFriction:
     def __init__(self, mode: str, face: tuple[float, float], grid_n: int, base: float) -> None:
         self.mode, self.face, self.base = mode, face, base
         self.grid = face_grid(*face, grid_n)
-        self.body = -1
         self.mu = -1.0  # the table's friction this step
         self.patches: list[Patch] = []
         self.contacts: list[tuple[Any, float]] = []  # last step's table (position, N)
-        self._body_friction: dict[int, float] = {}
 
-    def attach(self, world: World) -> None:
-        """Use a freshly built world (its table body, patches and friction per body)."""
-        self.body, self.patches = world.table_body, world.patch_map
-        self._body_friction = world.body_friction  # shared: the contact truth reads it
+    def attach(self, patches: Sequence[Patch], table_mu: float | None) -> None:
+        """Use a freshly built world: its ``patches`` and the friction of its one table box
+        (``None`` when no single box carries the table: none, or the ``boxes`` mode)."""
+        self.patches = list(patches)
         self.contacts = []
-        if world.table_mu is not None:
-            self.mu = world.table_mu
+        if table_mu is not None:
+            self.mu = table_mu
 
-    def update(self, p: Any, cid: int, tip: np.ndarray, axes: np.ndarray) -> None:
+    def update(self, tip: np.ndarray, axes: np.ndarray) -> float | None:
         """Before a physics step: the table's friction for the tool point ``tip`` and the
-        face's in-plane ``axes`` (a no-op without patches)."""
+        face's in-plane ``axes``, if it changed (the backend sets it on its table); ``None``
+        if it did not, or without patches."""
         if not self.patches:
-            return
+            return None
         mu = table_friction(
             self.mode, tip, axes, self.contacts, self.face, self.grid, self.patches, self.base
         )
-        if mu != self.mu:
-            p.changeDynamics(self.body, -1, lateralFriction=mu, physicsClientId=cid)
-            self.mu = mu
-            self._body_friction[self.body] = mu
+        if mu == self.mu:
+            return None
+        self.mu = mu
+        return mu
 
-    def observe(self, points: Sequence[Any]) -> None:
-        """After a physics step: keep the tool's table contacts (PyBullet contact points) for
-        the next step's ``footprint`` friction."""
+    def observe(self, contacts: Sequence[tuple[Any, float]]) -> None:
+        """After a physics step: the tool's table contacts ``(position, normal force)`` for
+        the next step's ``footprint`` friction (kept only with patches)."""
         if self.patches:
-            self.contacts = [(c[6], c[9]) for c in points if c[2] == self.body]
+            self.contacts = list(contacts)
