@@ -88,7 +88,7 @@ def test_same_seed_gives_identical_summary(tmp_path: Path) -> None:
         ("sim.dt=0", "sim.dt: must be > 0"),
         ("task=nope", "task=nope: unknown option; allowed:"),
         ("experiment=nope", "experiment=nope: unknown option; allowed:"),
-        ("sim=nope", "sim=nope: unknown option; allowed: pybullet3d, pymunk2d"),
+        ("sim=nope", "sim=nope: unknown option; allowed: mujoco3d, pybullet3d, pymunk2d"),
         ("controller.stifness=3", "controller.stifness: unknown key"),
         ("controller.stiffness=nan", "controller.stiffness: must be a finite number"),
         ("sim.control_decimation=0", "sim.control_decimation: must be an integer >= 1"),

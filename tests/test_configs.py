@@ -25,7 +25,7 @@ def _partner(group: str, option: str) -> list[str]:
     node = OmegaConf.load(config_dir() / group / f"{option}.yaml")
     if group == "task" and node.get("dim") == 3:
         return ["sim=pybullet3d"]
-    if group == "sim" and option == "pybullet3d":
+    if group == "sim" and option in ("pybullet3d", "mujoco3d"):
         return ["task=press_slide_3d"]
     return []
 

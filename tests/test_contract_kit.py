@@ -17,7 +17,7 @@ from ccm.core.types import Command, Observation
 from tests.plugins.controllers import PlainPD
 from tests.test_contracts import chosen, controllers
 
-BACKENDS = ("pymunk2d", "pybullet3d")
+BACKENDS = ("pymunk2d", "pybullet3d", "mujoco3d")
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

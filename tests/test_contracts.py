@@ -21,7 +21,7 @@ from ccm.experiment.user_configs import group_options
 from ccm.sim import BACKENDS
 
 #: a task per backend for the checks (2D: springs; 3D: table contact)
-TASK = {"pymunk2d": "multi_spring", "pybullet3d": "press_slide_3d"}
+TASK = {"pymunk2d": "multi_spring", "pybullet3d": "press_slide_3d", "mujoco3d": "press_slide_3d"}
 
 
 @pytest.mark.parametrize("backend", list(BACKENDS))

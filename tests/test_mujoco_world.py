@@ -1,16 +1,17 @@
 """The MuJoCo backend's static world (issue #42): the scene's geoms where the PyBullet
-backend puts its bodies, contacts that are the same per-point spring-damper, and the
-surface's own friction coefficient.
+backend puts its bodies, contacts that are the same per-point spring-damper on the contact
+mass they are mapped for (and scale with the mass, MuJoCo's contacts being acceleration
+level), and the surface's own friction coefficient.
 
-Each physics check uses a free 1 kg box (4 cm cube) dropped or pushed on the table, with
-the physics' known answers: at rest on its face (4 contact points, gravity 9.81 N) it sinks
-9.81 / (4k); pushed sideways with a force F it slides at (F − μ m g) / m above μ m g.
+Each physics check uses a free box (a 4 cm cube, 1 kg unless stated) dropped or pushed on the
+table, with the physics' known answers: at rest on its face (4 contact points, gravity 9.81 N)
+it sinks 9.81 / (4k); pushed sideways with a force F it slides at (F − μ m g) / m above μ m g.
 Below it, MuJoCo's soft friction has no position term: the box creeps instead of sticking
 (measured at c = 100 N s/m per point and 0.9 μ m g, after 0.3 s: 4.8 mm/s at μ = 0.2, 9.6 at
 0.35, 15 at 0.5, against 0.53 m/s without friction; PyBullet's Coulomb friction sticks). The
-agreement tests with PyBullet will have to allow for that creep, or the backend add
-stiction. Sliding, the soft friction passes a little less than μ N: the box gains up to
-12 % more speed than Coulomb's (F − μ m g) / m gives (measured, μ = 0.35 and 0.5)."""
+agreement tests with PyBullet will have to allow for that creep, or the backend add stiction.
+Sliding, the soft friction passes a little less than μ N: the box gains up to 12 % more speed
+than Coulomb's (F − μ m g) / m gives (measured, μ = 0.35 and 0.5)."""
 
 from __future__ import annotations
 
@@ -33,17 +34,19 @@ TABLE = {
 WALL = {"center": [0.75, 0.0, 0.2], "size": [0.02, 0.4, 0.2], "friction": 0.9}
 
 
-def _world(mode: str, k: float = 1.0e4, c: float = 100.0, x: float = 0.4):
-    """A model with the scene and a free 1 kg box resting (4 mm above) the table at x."""
+def _world(mode: str, k: float = 1.0e4, c: float = 100.0, x: float = 0.4, mass: float = 1.0,
+           mapped: float = 1.0):  # fmt: skip
+    """A model with the scene, its contacts mapped for contact mass ``mapped`` [kg], and a
+    free box of ``mass`` resting (4 mm above) the table at x."""
     scene = Scene3D.from_mapping({"table": TABLE, "boxes": [WALL]})
     spec = mujoco.MjSpec()
     spec.option.timestep = 0.001
     spec.option.gravity = [0.0, 0.0, -9.81]
-    world = add_world(spec, scene, mode, k, c)
+    world = add_world(spec, scene, mode, k, c, mapped)
     body = spec.worldbody.add_body(name="probe", pos=[x, 0.0, 0.1 + 0.02 + 0.004])
     body.add_freejoint()
-    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02] * 3, mass=1.0, friction=[1, 0, 0],
-                  **contact_params(k, c))  # fmt: skip
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02] * 3, mass=mass,
+                  friction=[1, 0, 0], **contact_params(k, c, mapped))  # fmt: skip
     model = spec.compile()
     return model, mujoco.MjData(model), world
 
@@ -70,14 +73,40 @@ def test_geoms_are_the_scenes_boxes() -> None:
         assert g.pos[2] + g.size[2] == pytest.approx(0.1)  # flush with the top
 
 
-@pytest.mark.parametrize("k", [1.0e4, 1.125e4, 1.0e5])
-def test_a_face_at_rest_is_four_point_springs(k: float) -> None:
-    model, data, _ = _world("friction_map", k=k)
+@pytest.mark.parametrize(("k", "mass"), [(1.0e4, 1.0), (1.125e4, 1.0), (1.0e5, 1.0), (1.0e4, 0.5),
+                                         (4.0e4, 2.5)])  # fmt: skip
+def test_a_face_at_rest_is_four_point_springs(k: float, mass: float) -> None:
+    """Mapped for the box's own mass, the face rests 4k stiff."""
+    model, data, _ = _world("friction_map", k=k, mass=mass, mapped=mass)
     for _ in range(3000):
         mujoco.mj_step(model, data)
     sink = 0.1 + 0.02 - data.qpos[2]
-    assert 9.81 / sink == pytest.approx(4 * k, rel=0.01)
+    assert mass * 9.81 / sink == pytest.approx(4 * k, rel=0.01)
     assert np.linalg.norm(data.qvel) < 1e-6
+
+
+def test_the_stiffness_scales_with_the_mass_moved() -> None:
+    """Mapped for 1 kg, a 2.5 kg box rests 2.5 × 4k stiff: MuJoCo's contact is
+    acceleration level (module docstring of :mod:`ccm.sim.mujoco.world`)."""
+    model, data, _ = _world("friction_map", k=1.0e4, mass=2.5, mapped=1.0)
+    for _ in range(3000):
+        mujoco.mj_step(model, data)
+    sink = 0.1 + 0.02 - data.qpos[2]
+    assert 2.5 * 9.81 / sink == pytest.approx(2.5 * 4 * 1.0e4, rel=0.01)
+
+
+def test_the_first_touch_pushes_four_c_v() -> None:
+    """Dropped at 0.1 m/s onto the table without gravity, the box's face (4 points) first
+    pushes 4 C v: the per-point damper C (the spring has not yet compressed)."""
+    model, data, _ = _world("friction_map", k=1.0e4, c=100.0, mass=0.5, mapped=0.5)
+    model.opt.gravity[:] = 0.0
+    data.qpos[2] = 0.1 + 0.02 + 1e-4
+    data.qvel[2] = -0.1
+    peak = 0.0
+    for _ in range(20):
+        mujoco.mj_step(model, data)
+        peak = max(peak, float(np.sum(data.efc_force[: data.nefc : 3])) if data.nefc else 0.0)
+    assert peak == pytest.approx(4 * 100.0 * 0.1, rel=0.1)
 
 
 @pytest.mark.parametrize(("x", "mu"), [(0.4, 0.2), (0.53, 0.5), (0.63, 0.35)])

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from ccm.reporting.paper import PAPER_EXPERIMENTS, main, sweep_command
+from ccm.reporting.paper import PAPER_EXPERIMENTS, experiment_sim, main, sweep_command
 
 
 def test_paper_pipeline_on_one_experiment(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -48,3 +48,12 @@ def test_every_paper_experiment_is_a_sweep_with_the_local_launcher(tmp_path: Pat
     assert "--force" not in full
     forced = sweep_command("h1_adaptive_control", tmp_path, quick=False, force=True)
     assert forced[forced.index("run") + 1] == "--force"  # ccm run --force -m …
+
+
+def test_sim_puts_the_3d_experiments_on_another_engine(tmp_path) -> None:  # noqa: ANN001
+    """``--sim mujoco3d`` (issue #42): the sweep gets ``sim=mujoco3d``, and only the 3-D
+    experiments are run (a 2-D one composes to pymunk2d)."""
+    assert "sim=mujoco3d" in sweep_command("h4_collisions", tmp_path, False, sim="mujoco3d")
+    assert not any(a.startswith("sim=") for a in sweep_command("h4_collisions", tmp_path, False))
+    assert experiment_sim("h4_collisions") == "pybullet3d"
+    assert experiment_sim("h1_adaptive_control") == "pymunk2d"

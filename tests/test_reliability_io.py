@@ -123,7 +123,7 @@ def _bool_fields() -> list[Any]:
             full = key if group in (".", "experiment") else f"{group.replace('/', '.')}.{key}"
             # a nested group (controller/loop) comes with its parent's default option
             pick = [] if group == "." or "/" in group else [f"{group}={path.stem}"]
-            three_d = data.get("dim") == 3 or path.stem == "pybullet3d"
+            three_d = data.get("dim") == 3 or path.stem in ("pybullet3d", "mujoco3d")
             if three_d:
                 pick += ["sim=pybullet3d"] if group == "task" else ["task=table_wall"]
             if not full.startswith("hydra") and full not in seen:

@@ -4,8 +4,9 @@ of contact inside a few hundred control steps (issue #41).
 * ``pymunk2d``: a spring pulls on the block while it moves 4 cm toward a wall, presses on it
   with 5 N, then slides along it (the springs and the wall of ``configs/task/smoke.yaml`` and
   ``slide_surfaces_2d.yaml``, shortened).
-* ``pybullet3d``: the Panda's tool comes down onto the table, presses with 10 N and slides
-  (``configs/task/press_slide_3d.yaml``, shortened).
+* ``pybullet3d`` and ``mujoco3d``: the Panda's tool comes down onto the table, presses with
+  10 N and slides (``configs/task/press_slide_3d.yaml``, shortened); the same task on both
+  3-D engines.
 
 :func:`world` builds them from plain mappings with the backends' defaults (1 kHz physics),
 so the kit needs no config files; ``faults=True`` turns on the F/T sensor's spikes and
@@ -71,6 +72,7 @@ TASKS: dict[str, dict[str, Any]] = {
         ],
     },
 }  # fmt: skip
+TASKS["mujoco3d"] = TASKS["pybullet3d"]  # the same Panda, scene and task on the second engine
 
 
 @dataclass(frozen=True)

@@ -52,15 +52,17 @@ def frames(
     configs (mappings) or the parsed objects a built simulator holds (``sim.scene``,
     ``sim.config``)."""
     name = sim_cfg.get("name") if isinstance(sim_cfg, Mapping) else None
-    three_d = name == "pybullet3d" or "pos_z" in log
-    if three_d:
+    three_d = name in ("pybullet3d", "mujoco3d") or "pos_z" in log
+    if three_d:  # either 3-D engine's run: the same Panda, replayed from its joint angles
         from ccm.plots.animate3d import frames_3d
+        from ccm.sim.mujoco.config import MuJoCo3DConfig
         from ccm.sim.pybullet.scene import PyBullet3DConfig
         from ccm.sim.scene3d import Scene3D
 
         if isinstance(scene_cfg, Mapping):
             scene_cfg = Scene3D.from_mapping(scene_cfg, "task.scene")
-            sim_cfg = PyBullet3DConfig.from_mapping(sim_cfg, "sim")
+            parse = MuJoCo3DConfig if name == "mujoco3d" else PyBullet3DConfig
+            sim_cfg = parse.from_mapping(sim_cfg, "sim")
         return frames_3d(log, scene_cfg, sim_cfg, settings, labels)
     from ccm.plots.animate2d import frames_2d
     from ccm.sim.pymunk.scene import SceneSpec

@@ -1,15 +1,16 @@
-"""3D animation of a PyBullet trial: the recorded joint states replayed and rendered offscreen.
+"""3D animation of a 3-D trial (either engine: PyBullet or MuJoCo, the same Panda): the recorded
+joint states replayed and rendered offscreen by PyBullet.
 
 A DIRECT PyBullet client loads the Panda with its visual meshes and the block tool
-(:func:`ccm.sim.panda.robot_urdf`, ``visuals=True``: the simulator itself leaves them
-out) and draws the scene as visual-only boxes: the table, its friction patches (blue) and the
-static boxes (walls). For each frame the arm's joints are set to the recorded angles
-(``truth_q1_rad`` ... ``truth_q7_rad``, :class:`ccm.sim.pybullet.backend.PyBullet3D` records
-them) with ``resetJointState``, so nothing is simulated: the image is PyBullet's tiny software
-renderer (``getCameraImage``, ``ER_TINY_RENDERER``) from the ``animate.camera`` view. The
-target of P (its path faint, its current point a cross), the measured F/T force as an arrow
-from the tool point (scale in N per m), the legend and the time / phase / mode overlay are drawn
-on the image with Pillow, projected through the same camera matrices.
+(:func:`ccm.sim.panda.robot_urdf`, ``visuals=True``: the simulator itself leaves them out) and
+draws the scene as visual-only boxes: the table, its friction patches (blue) and the static
+boxes (walls). For each frame the arm's joints are set to the recorded angles (``truth_q1_rad``
+... ``truth_q7_rad``, both 3-D backends record them) with ``resetJointState``, so nothing is
+simulated: the image is PyBullet's tiny software renderer (``getCameraImage``,
+``ER_TINY_RENDERER``) from the ``animate.camera`` view. The target of P (its path faint, its
+current point a cross), the measured F/T force as an arrow from the tool point (scale in N per
+m), the legend and the time / phase / mode overlay are drawn on the image with Pillow, projected
+through the same camera matrices.
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ import numpy as np
 
 from ccm.core.errors import ConfigError
 from ccm.plots.frames import AnimateSettings, frame_steps, nice_scale, overlay_text
+from ccm.sim.arm_config import ArmConfig
 from ccm.sim.panda import N_ARM, robot_urdf
-from ccm.sim.pybullet.scene import PyBullet3DConfig
 from ccm.sim.scene3d import Scene3D
 
 #: the recorded joint angle columns [rad] (``StepInfo.extra`` keys ``q1_rad`` ... ``q7_rad``)
@@ -62,7 +63,7 @@ def _box(p: Any, cid: int, center: Any, half: Any, rgba: Any) -> None:
     )
 
 
-def _build_world(p: Any, cid: int, scene: Scene3D, config: PyBullet3DConfig) -> int:
+def _build_world(p: Any, cid: int, scene: Scene3D, config: ArmConfig) -> int:
     """Table, patches and boxes as visual shapes, and the robot; returns its id. No floor:
     the tiny renderer's cost grows with the pixels each shape covers (a 3 m floor took the
     frame from 0.09 to 0.12 s at 640 x 480, measured)."""
@@ -135,7 +136,7 @@ def _arrow(draw: Any, a: np.ndarray, b: np.ndarray) -> None:
 def frames_3d(
     log: Mapping[str, np.ndarray],
     scene: Scene3D,
-    config: PyBullet3DConfig,
+    config: ArmConfig,
     settings: AnimateSettings,
     labels: Mapping[str, Any],
 ) -> Iterator[np.ndarray]:

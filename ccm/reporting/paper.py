@@ -8,6 +8,8 @@ once, longest first: a sweep with fewer jobs than workers, or the last job of an
 would otherwise leave a core idle. Sweeps resume (finished runs are skipped), so running the
 same command again after an interruption only does what is missing. ``--quick`` runs seed 0
 with truncated trials (``experiment.fast=true``): a smoke test of the whole pipeline.
+``--sim mujoco3d`` runs the 3-D experiments, and only those, on the MuJoCo backend (issue
+#42: ``sim=mujoco3d`` appended to each sweep; every other setting is the experiment's).
 
 Figures (issue #40): the trial-loop sweeps run with ``experiment.figures=false``; once they
 are done, the figures of the runs the report shows (each experiment's lowest seed) are drawn
@@ -49,19 +51,34 @@ PAPER_EXPERIMENTS = (
     "h1_forward_model_one_step", "mpc_convexity", "h4_impact_design",
 )  # fmt: skip
 
+#: the 3-D backends ``--sim`` may put a 3-D experiment on
+THREE_D_ENGINES = ("pybullet3d", "mujoco3d")
+
 
 def sweep_command(
-    name: str, out: Path, quick: bool, launcher: str = "local", force: bool = False
-) -> list[str]:
+    name: str, out: Path, quick: bool, launcher: str = "local", force: bool = False,
+    sim: str | None = None,
+) -> list[str]:  # fmt: skip
     """The ``ccm run -m`` command line of one experiment's sweep (``force``: ``--force``,
-    earlier records moved aside, :mod:`ccm.experiment.run_record`). A trial-loop sweep runs
-    without figures: :func:`draw_shown_figures` draws those the report shows afterwards."""
+    earlier records moved aside, :mod:`ccm.experiment.run_record`; ``sim``: another backend
+    for it, ``sim=<name>``). A trial-loop sweep runs without figures:
+    :func:`draw_shown_figures` draws those the report shows afterwards."""
     cmd = [sys.executable, "-m", "ccm.cli", "run", *["--force"] * force, "-m", f"experiment={name}"]
+    if sim is not None:
+        cmd.append(f"sim={sim}")
     if quick:
         cmd += ["seed=0", "experiment.fast=true"]
     if trial_loop(name):
         cmd.append("experiment.figures=false")
     return [*cmd, f"hydra/launcher={launcher}", f"hydra.sweep.dir={out / name}"]
+
+
+def experiment_sim(name: str) -> str:
+    """The backend experiment ``name`` runs on (its composed ``sim.name``)."""
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(str(config_dir()), version_base="1.3", job_name="ccm_paper"):
+        return str(compose("config", overrides=[f"experiment={name}"]).sim.name)
 
 
 def trial_loop(name: str) -> bool:
@@ -98,7 +115,7 @@ def _run_sweep(
     sweep's loky workers; a cluster's jobs are not counted)."""
     start = time.perf_counter()
     with open(out / f"{name}.log", "a", encoding="utf-8") as log:  # earlier invocations kept
-        cmd = sweep_command(name, out, args.quick, args.launcher, args.force)
+        cmd = sweep_command(name, out, args.quick, args.launcher, args.force, args.sim)
         log.write(f"=== {time.strftime('%Y-%m-%d %H:%M:%S')}: {' '.join(cmd[1:])}\n")
         log.flush()
         proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
@@ -140,6 +157,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--launcher", default="local",
         help="hydra/launcher preset for every sweep (local; slurm with --lanes 14 on a cluster)",
     )  # fmt: skip
+    p.add_argument(
+        "--sim", choices=THREE_D_ENGINES, default=None,
+        help="run the 3-D experiments (and only those) on this 3-D backend instead "
+        "(issue #42: mujoco3d beside the configs' pybullet3d)",
+    )  # fmt: skip
     p.add_argument("experiments", nargs="*", help=f"default: all {len(PAPER_EXPERIMENTS)}")
     args = p.parse_args(argv)
     unknown = [e for e in args.experiments if e not in PAPER_EXPERIMENTS]
@@ -161,6 +183,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"ccm paper: --lanes must be >= 1, got {args.lanes}", file=sys.stderr)
         return 2
     names = [e for e in PAPER_EXPERIMENTS if not args.experiments or e in args.experiments]
+    if args.sim is not None:  # the 3-D experiments only: a 2-D one has no 3-D engine to swap
+        names = [e for e in names if experiment_sim(e) in THREE_D_ENGINES]
     check_output_dir("paper --out", args.out)  # a file, or under one: one line (issue #19)
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -174,7 +198,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     _record_timing(
         args.out / "paper_timing.json",
         {"wall_s": round(wall, 1), "lanes": args.lanes, "quick": args.quick,
-         "launcher": args.launcher,
+         "launcher": args.launcher, "sim": args.sim,
          "sweeps_s": {n: round(s, 1) for n, _, s, _ in results},
          "sweeps_cpu_s": {n: round(c, 1) for n, _, _, c in results},
          "figures_s": round(figures["wall_s"], 1), "figures_cpu_s": round(figures["cpu_s"], 1),

@@ -14,6 +14,7 @@ from ccm.sim.base import Simulator
 BACKENDS: dict[str, str] = {
     "pymunk2d": "ccm.sim.pymunk.backend:Pymunk2D",
     "pybullet3d": "ccm.sim.pybullet.backend:PyBullet3D",
+    "mujoco3d": "ccm.sim.mujoco.backend:MuJoCo3D",
 }
 
 

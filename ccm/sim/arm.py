@@ -33,10 +33,13 @@ from typing import Any
 
 import numpy as np
 
-from ccm.core.errors import ConfigError
+from ccm.core.errors import ConfigError, SimulationDiverged
+from ccm.core.types import Observation, StepInfo
 from ccm.sim._kernels import orientation_error, task_space, torque_law, translational_inertia
 from ccm.sim.arm_config import ArmConfig
+from ccm.sim.base import all_finite
 from ccm.sim.panda import N_ARM
+from ccm.sim.sensor import FTSensor
 
 
 class TorqueLaw:
@@ -160,3 +163,77 @@ def dls_ik(
                 "(try another start or sim.rest_posture)",
             )
     return q
+
+
+#: ``StepInfo.extra`` keys of the arm's joint angles [rad], recorded as ``truth_q1_rad`` ...
+JOINT_KEYS = tuple(f"q{i}_rad" for i in range(1, N_ARM + 1))
+
+
+def arm_output(
+    t: float,
+    tip: tuple[np.ndarray, Any, np.ndarray, np.ndarray],
+    orientation: np.ndarray,
+    wrench: tuple[np.ndarray, np.ndarray],
+    sensor: FTSensor,
+    inertia: np.ndarray,
+    truth: tuple[np.ndarray, np.ndarray, int, float, np.ndarray],
+    table_mu: float,
+    joints: np.ndarray,
+    hand: np.ndarray | None,
+) -> tuple[Observation, StepInfo]:
+    """The Observation and the truth of a 3-D backend's step (the same ``extra`` keys at every
+    step, as the recorder fixes its columns at the first).
+
+    Args:
+        t: time [s]; tip: the tool point's position, (engine) orientation, linear and angular
+            velocity; orientation: the tool's orientation (x, y, z, w).
+        wrench: the external force and moment at the tool point before the sensor model.
+        sensor: the F/T sensor model (noise, bias, faults); inertia: the tool point's
+            translational inertia for the controller [kg] (3, 3).
+        truth: ``(contact force, moment about the tool point, count, friction of the surface
+            carrying the largest normal force, split)``, split = (table normal, box normal,
+            |box friction|, normal part x, y, z) [N].
+        table_mu: the table's friction this step; joints: the arm's joint angles [rad].
+        hand: the hand's mean force over the period [N] (3,), ``None`` without a hand.
+
+    Raises:
+        SimulationDiverged: on a non-finite tool position or velocity.
+    """
+    pos, _, lin, ang = tip
+    if not all_finite(pos, lin):
+        raise SimulationDiverged(
+            f"non-finite tool state at t={t:.3f} s (position={pos.tolist()}, "
+            f"velocity={lin.tolist()})"
+        )
+    f_meas, t_meas = sensor.measure(*wrench)
+    obs = Observation(t=t, position=pos, orientation=orientation, lin_vel=lin, ang_vel=ang,
+                      force=f_meas, torque=t_meas, inertia=inertia)  # fmt: skip
+    f_contact, t_contact, n, mu, split = truth
+    table_n, box_n, box_f, nx, ny, nz = split.tolist()
+    extra_hand = {}
+    if hand is not None:  # the hand's force is external too, not a contact
+        extra_hand = dict(zip(("human_fx_N", "human_fy_N", "human_fz_N"), hand.tolist(),
+                              strict=True))  # fmt: skip
+    info = StepInfo(
+        # contacts (and a scene's hand) are the only external forces in these worlds
+        true_force=f_contact if hand is None else f_contact + hand,
+        true_torque=t_contact,
+        contact_force=f_contact,
+        n_contacts=n,
+        extra={
+            "surface_friction": mu if n > 0 else -1.0,
+            "table_friction": table_mu,  # the table's friction this step (patches)
+            "contact": 1.0 if n > 0 else 0.0,
+            "table_normal_N": table_n,  # normal force from the table [N]
+            "box_normal_N": box_n,  # ... from scene.boxes (walls) [N]
+            "box_friction_N": box_f,  # |friction force| from the boxes [N]
+            # the normal part of the contact force (friction left out) [N]
+            "normal_force_x": nx,
+            "normal_force_y": ny,
+            "normal_force_z": nz,
+            # the arm's joint angles [rad] (q1_rad ... q7_rad): what `ccm animate` replays
+            **dict(zip(JOINT_KEYS, joints.tolist(), strict=True)),
+            **extra_hand,
+        },
+    )
+    return obs, info

@@ -159,7 +159,7 @@ def run_entry(
             str(out_dir / "runs" / t / f"seed_{s}"))
         for t in tasks for s in suite.seeds
     ]  # fmt: skip
-    order = sorted(specs, key=lambda j: suite.tasks[j.task].sim != "pybullet3d")
+    order = sorted(specs, key=lambda j: suite.tasks[j.task].sim == "pymunk2d")
     rows: list[dict[str, Any]] = []
     if jobs <= 1:
         for job in order:

@@ -15,6 +15,14 @@ The same robot as the PyBullet backend (:mod:`ccm.sim.panda`):
   backend's torque loop sets ``ctrl`` to joint torques [N m].
 * **Tool point**: a site ``ccm_tool_point`` at the centre of the tool's bottom face, the
   point every observation and Jacobian refers to.
+* **Wrist F/T sensor**: MuJoCo's ``force`` and ``torque`` sensors on a site ``ccm_ft`` at the
+  tool's centre of mass, in the tool's frame. They read the wrench the hand exerts on the
+  tool (its subtree), the moment about the site: measured, the tool at rest in free space
+  reads +m g upward in the world frame. That is the PyBullet backend's joint reading, and
+  the backend turns it into the external wrench at the tool point the same way
+  (:func:`ccm.sim._kernels.tool_sense`).
+* **Collisions**: the robot's geoms collide with the world's and not with each other
+  (``contype`` 1, ``conaffinity`` 0), as in PyBullet without self-collision.
 * **Gravity** ``(0, 0, −g)`` and the time step ``dt`` as the ``sim`` config gives them.
 """
 
@@ -29,8 +37,9 @@ import numpy as np
 
 from ccm.sim.panda import GRAVITY, N_ARM, LinkInertial, ToolSpec, pybullet_inertials, robot_urdf
 
-#: the tool point's site and the arm's joint names
+#: the tool point's site, the F/T sensor's site, and the arm's joint names
 TOOL_POINT = "ccm_tool_point"
+FT_SITE = "ccm_ft"
 ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, N_ARM + 1))
 _COMPILER = '<mujoco><compiler fusestatic="false" discardvisual="true" strippath="false"/></mujoco>'
 
@@ -54,7 +63,14 @@ def panda_spec(tool: ToolSpec, dt: float = 0.001) -> mujoco.MjSpec:
         joint.armature, joint.frictionloss = 0.0, 0.0
         spec.add_actuator(name=f"{name}_motor", target=name,
                           trntype=mujoco.mjtTrn.mjTRN_JOINT, gear=[1, 0, 0, 0, 0, 0])  # fmt: skip
-    spec.body("ccm_tool").add_site(name=TOOL_POINT, pos=[0.0, 0.0, tool.size[2]])
+    tool_body = spec.body("ccm_tool")
+    tool_body.add_site(name=TOOL_POINT, pos=[0.0, 0.0, tool.size[2]])
+    tool_body.add_site(name=FT_SITE, pos=[0.0, 0.0, tool.size[2] / 2.0])  # centre of mass
+    for kind, name in ((mujoco.mjtSensor.mjSENS_FORCE, "ccm_ft_force"),
+                       (mujoco.mjtSensor.mjSENS_TORQUE, "ccm_ft_torque")):  # fmt: skip
+        spec.add_sensor(name=name, type=kind, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=FT_SITE)
+    for geom in spec.geoms:  # every geom so far is the robot's
+        geom.contype, geom.conaffinity = 1, 0
     return spec
 
 

@@ -3,24 +3,40 @@ patches, and its boxes, added to the model specification as fixed box geoms.
 
 It mirrors :mod:`ccm.sim.pybullet.world`: ``patch_mode`` ``boxes`` cuts the table's top layer
 around thin patch boxes (:func:`ccm.sim.scene3d.boxed_table_parts`); the other modes keep
-one table box and record the patches for the friction under the tool. Two engine facts make
-the contacts the PyBullet backend's:
+one table box and record the patches for the friction under the tool. Engine facts behind
+the contact settings, each measured (``tests/test_mujoco_world.py``):
 
-* **Contact stiffness and damping per contact point.** Every static geom gets MuJoCo's direct
-  ``solref = (−k, −c)`` with ``solimp = (0, 0, …)``: measured, a box resting on its face (4
-  contact points) is then 4k stiff and its first touch at speed v pushes 4c·v, the
-  per-point spring-damper of the PyBullet backend (``sim.contact_stiffness`` /
-  ``contact_damping``). MuJoCo's default ``solimp`` would make it ~9× stiffer. This needs
-  the *elliptic* friction cone, which :func:`add_world` sets: with the default pyramidal one
-  the direct ``solref`` acts on the pyramid's edges, so the normal response depends on μ
-  (measured: a box dropped 4 mm is thrown off at 6-100 m/s for μ = 0.2-0.5, and rests 4k
-  stiff only at μ = 1); with the elliptic cone it rests 4k stiff at every μ.
+* **MuJoCo's contacts are acceleration-level.** A contact is a soft constraint whose
+  reference acceleration is ``−b v − k r`` (penetration r, its rate v): the force it gives is
+  k and b times the mass the contact moves. With MuJoCo's direct ``solref = (−k, −b)`` and
+  ``solimp = (0, 0, …)`` (the impedance at its floor, so the reference is the whole
+  response), a box of mass m resting on its face (4 contact points) is 4 k m stiff, and
+  first touching at speed v it pushes 4 b m v: a per-point spring-damper k m, b m (measured
+  at m = 0.15, 1 and 10 kg). So a contact stiffness K [N/m] and damping C [N s/m] per point,
+  the PyBullet backend's settings (``sim.contact_stiffness`` / ``contact_damping``), are
+  ``k = K / m_c`` and ``b = C / m_c`` for a contact mass m_c (:func:`contact_params`): exact
+  for a body of that mass; for the tool on the arm, m_c is the mass the arm presents at a
+  contact point, which changes with its configuration (``sim.contact_mass_kg`` says where the
+  backend's value was measured). MuJoCo's default ``solimp`` (0.9, 0.95, …) would make the
+  contact ~9× stiffer and nonlinear over its first millimetre.
+* **The elliptic cone.** With the default pyramidal cone the direct ``solref`` acts on the
+  pyramid's edges, so the normal response depends on μ (measured: a box dropped 4 mm is
+  thrown off at 6-100 m/s for μ = 0.2-0.5, and rests 4k stiff only at μ = 1); with the
+  elliptic cone, which :func:`add_world` sets, it rests 4 k m stiff at every μ.
+* **Damping is explicit.** The reference acceleration uses the current velocity, so the
+  damping must stay well inside one step: at 1 kHz, b = 1000 /s (the 1 kg box at C = 1000
+  N s/m) throws the box off, and the Panda's tool pressed with 10 N chatters from b ≈ 200 /s
+  (normal-force std 1.4 N; 4.2 N at 420 /s); sliding, it chatters from less
+  (``configs/sim/mujoco3d.yaml`` has the numbers behind the backend's default).
 * **The surface's friction.** MuJoCo takes the larger friction of two geoms, or the one of
   the geom with the higher ``priority``: static geoms get priority 1, so a contact has the
-  surface's coefficient, as PyBullet's multiplication by the tool's 1 gives. MuJoCo's
-  friction is soft: below μ N a pushed body creeps (mm/s) rather than sticks, and sliding
-  it passes a little less than μ N (``tests/test_mujoco_world.py`` has the numbers); the
-  PyBullet backend's Coulomb friction sticks.
+  surface's coefficient (and its ``solref``), as PyBullet's multiplication by the tool's 1
+  gives. MuJoCo's friction is soft: below μ N a pushed body creeps (mm/s) rather than
+  sticks, and sliding it passes a little less than μ N; the PyBullet backend's Coulomb
+  friction sticks.
+* **Collisions.** Static geoms collide with the robot's and not with each other
+  (``contype`` 0, ``conaffinity`` 1); the robot's geoms do not collide with each other
+  (:mod:`ccm.sim.mujoco.model`), as PyBullet does without self-collision.
 """
 
 from __future__ import annotations
@@ -55,19 +71,21 @@ class World:
     box_geoms: list[str] = field(default_factory=list)
 
 
-def contact_params(stiffness: float, damping: float) -> dict[str, list[float]]:
+def contact_params(stiffness: float, damping: float, mass: float) -> dict[str, list[float]]:
     """``solref``/``solimp`` of a geom whose contacts are a spring ``stiffness`` [N/m] and a
-    damper ``damping`` [N s/m] per contact point (module docstring)."""
-    return {"solref": [-float(stiffness), -float(damping)], "solimp": list(SOLIMP)}
+    damper ``damping`` [N s/m] per contact point on a body of contact mass ``mass`` [kg]:
+    ``solref = (−K/m_c, −C/m_c)`` (module docstring)."""
+    return {"solref": [-stiffness / mass, -damping / mass], "solimp": list(SOLIMP)}
 
 
 def add_world(spec: mujoco.MjSpec, scene: Scene3D, patch_mode: str, stiffness: float,
-              damping: float) -> World:  # fmt: skip
-    """Add the table (per ``patch_mode``) and the boxes of ``scene`` to ``spec``, and set
-    the elliptic friction cone their contact model needs (module docstring)."""
+              damping: float, mass: float) -> World:  # fmt: skip
+    """Add the table (per ``patch_mode``) and the boxes of ``scene`` to ``spec``, their
+    contacts per point a spring ``stiffness`` and damper ``damping`` on contact mass ``mass``,
+    and set the elliptic friction cone their contact model needs (module docstring)."""
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
     world = World()
-    contact = contact_params(stiffness, damping)
+    contact = contact_params(stiffness, damping, mass)
     table = scene.table
     if table is not None:
         (cx, cy), (w, d) = table.center, table.size
@@ -93,7 +111,8 @@ def _box(
     """A fixed box geom in the world body, its friction recorded; returns its name."""
     spec.worldbody.add_geom(
         name=name, type=mujoco.mjtGeom.mjGEOM_BOX, pos=list(center), size=list(half),
-        friction=[float(friction), _SPIN, _ROLL], priority=1, **contact,
+        friction=[float(friction), _SPIN, _ROLL], priority=1, contype=0, conaffinity=1,
+        **contact,
     )  # fmt: skip
     world.geom_friction[name] = float(friction)
     return name

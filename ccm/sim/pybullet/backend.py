@@ -28,6 +28,7 @@ import numpy as np
 from ccm.core.errors import ConfigError, SimulationDiverged, check_vector
 from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim._kernels import tool_sense
+from ccm.sim.arm import arm_output
 from ccm.sim.base import Simulator, all_finite
 from ccm.sim.footprint import TableFriction
 from ccm.sim.hand import Hand
@@ -51,10 +52,6 @@ __all__ = [
     "DOWN", "GRAVITY", "N_ARM", "PANDA_READY", "PATCH_MODES", "Box3DSpec", "PyBullet3D",
     "PyBullet3DConfig", "Scene3D", "TablePatch", "TableSpec", "ToolSpec", "orientation_error",
 ]  # fmt: skip
-
-
-#: ``StepInfo.extra`` keys of the arm's joint angles [rad], recorded as ``truth_q1_rad`` ...
-_JOINT_KEYS = tuple(f"q{i}_rad" for i in range(1, N_ARM + 1))
 
 
 # --------------------------------------------------------------------------- simulator
@@ -382,50 +379,10 @@ class PyBullet3D(Simulator):
         mu: float,
         split: np.ndarray,
     ) -> tuple[Observation, StepInfo]:
-        """Observation (F/T path + sensor noise) and truth (contact forces; the same
-        ``extra`` keys at every step, as the recorder fixes its columns at the first)."""
-        pos, _, lin, ang = self._tip
-        if not all_finite(pos, lin):
-            raise SimulationDiverged(
-                f"non-finite tool state at t={self._steps * self.dt:.3f} s "
-                f"(position={pos.tolist()}, velocity={lin.tolist()})"
-            )
-        f_meas, t_meas = self.sensor.measure(f_sensed, t_sensed)
-        table_n, box_n, box_f, nx, ny, nz = split.tolist()
-        obs = Observation(
-            t=self._steps * self.dt,
-            position=pos,
-            orientation=self._orn,  # a fresh array every physics step
-            lin_vel=lin,
-            ang_vel=ang,
-            force=f_meas,
-            torque=t_meas,
-            inertia=self.torque_loop.translational_inertia(*self._joint_state()),
-        )
-        hand = {}
-        if self._hand is not None:  # the hand's force is external too, not a contact
-            hand = dict(zip(("human_fx_N", "human_fy_N", "human_fz_N"),
-                            self._hand_mean.tolist(), strict=True))  # fmt: skip
-        info = StepInfo(
-            # contacts (and a scene's hand) are the only external forces in this world
-            true_force=f_contact if self._hand is None else f_contact + self._hand_mean,
-            true_torque=t_contact,
-            contact_force=f_contact,
-            n_contacts=n,
-            extra={
-                "surface_friction": mu if n > 0 else -1.0,
-                "table_friction": self.table.mu,  # the table's friction this step (patches)
-                "contact": 1.0 if n > 0 else 0.0,
-                "table_normal_N": table_n,  # normal force from the table [N]
-                "box_normal_N": box_n,  # ... from scene.boxes (walls) [N]
-                "box_friction_N": box_f,  # |friction force| from the boxes [N]
-                # the normal part of the contact force (friction left out) [N]
-                "normal_force_x": nx,
-                "normal_force_y": ny,
-                "normal_force_z": nz,
-                # the arm's joint angles [rad] (q1_rad ... q7_rad): what `ccm animate` replays
-                **dict(zip(_JOINT_KEYS, self._recorded_joints().tolist(), strict=True)),
-                **hand,
-            },
-        )
-        return obs, info
+        """Observation (F/T path + sensor noise) and truth (:func:`ccm.sim.arm.arm_output`)."""
+        return arm_output(
+            self._steps * self.dt, self._tip, self._orn, (f_sensed, t_sensed), self.sensor,
+            self.torque_loop.translational_inertia(*self._joint_state()),
+            (f_contact, t_contact, n, mu, split), self.table.mu, self._recorded_joints(),
+            self._hand_mean if self._hand is not None else None,
+        )  # fmt: skip
