@@ -15,7 +15,8 @@ from ccm.bench.loop import bench_task, paper_cpu, print_paper_cpu
 
 
 @pytest.mark.parametrize(
-    ("task", "sim"), [("multi_spring", None), ("changing_surface", "pybullet3d")]
+    ("task", "sim"),
+    [("multi_spring", None), ("changing_surface", "pybullet3d"), ("changing_surface", "mujoco3d")],
 )
 def test_raw_loop_runs_the_engine_and_moves_time_on(task: str, sim: str | None) -> None:
     comp = components(task, "fixed_impedance", sim)

@@ -17,6 +17,10 @@ timing starts (P's own cost is ccm's, not the engine's).
   pose and twist), ``calculateJacobian``, ``calculateMassMatrix``,
   ``calculateInverseDynamics``, then ``τ = Jᵀ F + h`` in plain Python,
   ``setJointMotorControlArray(TORQUE_CONTROL)`` and ``stepSimulation``.
+* **MuJoCo** (:class:`ccm.sim.mujoco.backend.MuJoCo3D`): the same loop in MuJoCo's calls:
+  ``mj_step1`` (kinematics, collisions, bias forces), the tool point's position, ``mj_jacSite``
+  (its twist is J q̇), ``mj_solveM`` (M⁻¹, as PyBullet's row asks for M), ``τ = Jᵀ F +
+  qfrc_bias`` in numpy, ``ctrl`` and ``mj_step2``.
 
 Both run on the simulator ccm built for the row, after a reset, through its engine handles.
 :func:`raw_loop` gives a row's wall time; :func:`raw_cpu_per_step` and :func:`raw_reset_cpu`
@@ -70,7 +74,7 @@ def raw_reset_cpu(sim: Any, repeats: int = 3) -> float:
     """Median CPU seconds of what a PyBullet trial's reset asks of the engine:
     ``resetSimulation`` and ``loadURDF`` of the Panda with ccm's tool (the URDF ccm loads,
     written once beforehand); 0.0 for pymunk, whose reset builds a few shapes."""
-    if not hasattr(sim, "_robot"):
+    if not hasattr(sim, "_client"):
         return 0.0
     import tempfile
 
@@ -99,8 +103,10 @@ def _targets(sim: Any, pattern: Any, t0: float, control_steps: int) -> list[tupl
 def _engine_loop(sim: Any) -> Callable[..., float]:
     if hasattr(sim, "_space"):
         return _pymunk
-    if hasattr(sim, "_robot"):
+    if hasattr(sim, "_client"):
         return _pybullet
+    if hasattr(sim, "law"):
+        return _mujoco
     raise TypeError(f"no raw loop for {type(sim).__name__}")
 
 
@@ -143,4 +149,26 @@ def _pybullet(sim: Any, targets: list[tuple[float, ...]], clock: Callable[[], fl
                 robot, arm, p.TORQUE_CONTROL, forces=tau, physicsClientId=cid
             )
             p.stepSimulation(physicsClientId=cid)
+    return clock() - t0
+
+
+def _mujoco(sim: Any, targets: list[tuple[float, ...]], clock: Callable[[], float]) -> float:
+    import mujoco
+
+    robot = sim._robot
+    m, d, site, hold = robot.model, robot.data, robot.tip_site, sim.control_decimation
+    jac, minv, eye = np.zeros((6, m.nv)), np.zeros((m.nv, m.nv)), np.eye(m.nv)
+    gains = np.array([KP, KP, KP]), np.array([KD, KD, KD, KD_ROT, KD_ROT, KD_ROT])
+    mujoco.mj_step1(m, d)
+    t0 = clock()
+    for target in targets:
+        for _ in range(hold):
+            mujoco.mj_jacSite(m, d, jac[:3], jac[3:], site)
+            mujoco.mj_solveM(m, d, minv, eye)
+            twist = jac @ d.qvel
+            wrench = -gains[1] * twist
+            wrench[:3] += gains[0] * (np.asarray(target) - d.site_xpos[site])
+            d.ctrl[:] = jac.T @ wrench + d.qfrc_bias
+            mujoco.mj_step2(m, d)
+            mujoco.mj_step1(m, d)
     return clock() - t0

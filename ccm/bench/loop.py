@@ -209,12 +209,14 @@ def loop_rows(repeats: int) -> list[dict[str, Any]]:
     """Every loop row: the 2D tasks with fixed impedance, multi_spring (issue #20) and porridge
     with AVIC, (issue #4) the PyBullet changing-surface task with the full mode-detection
     stack, and the PyBullet loop H3 records its 88 trials per seed with (table_wall, fixed
-    medium impedance: the largest part of ``make reproduce-paper``)."""
+    medium impedance: the largest part of ``make reproduce-paper``); both 3-D rows on
+    PyBullet and on MuJoCo (issue #42)."""
     rows = [bench_task(t, repeats) for t in TASKS]
     rows.append(bench_task("multi_spring", repeats, controller="avic"))
     rows.append(bench_task("porridge_stirring", repeats, controller="avic"))
-    rows.append(bench_task("changing_surface", repeats, "avic_modes", sim="pybullet3d", fresh=True))
-    rows.append(bench_task("table_wall", repeats, "fixed_impedance_medium", sim="pybullet3d"))
+    for sim in ("pybullet3d", "mujoco3d"):  # issue #42: the same rows on both 3-D engines
+        rows.append(bench_task("changing_surface", repeats, "avic_modes", sim=sim, fresh=True))
+        rows.append(bench_task("table_wall", repeats, "fixed_impedance_medium", sim=sim))
     return rows
 
 
