@@ -49,7 +49,10 @@ commands:
                         over seeds, failures; --claims FILE for another claims file
   paper [--quick]       every paper experiment over its seeds (2 sweeps at a time), then
                         report (make reproduce-paper); --out DIR, --lanes N, names to select,
-                        --force to start over (earlier records moved aside, not resumed)
+                        --force to start over (earlier records moved aside, not resumed),
+                        --sim mujoco3d the 3-D experiments only, on MuJoCo
+  compare-engines A B   the 3-D claims' verdicts of two paper runs (PyBullet, MuJoCo) side
+                        by side -> B/cross_engine.md
   plots DIR…            draw a finished run's figures again from its files (a sweep
                         directory: each of its runs, --jobs N at a time)
   animate RUN_DIR       a clip of one recorded trial (MP4 with ffmpeg, else GIF), replayed
@@ -357,11 +360,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         return cmd_list(argv[1:])
     if argv[0] == "run":
         return cmd_run(argv[1:])
-    if argv[0] in ("report", "paper", "plots", "animate", "demo", "suite"):
+    if argv[0] in ("report", "paper", "plots", "animate", "demo", "suite", "compare-engines"):
         from ccm.analyses.demo import main as demo
         from ccm.core.errors import ConfigError
         from ccm.plots.animate import main as animate
         from ccm.plots.redraw import main as plots
+        from ccm.reporting.cross_engine import main as compare_engines
         from ccm.reporting.paper import main as paper
         from ccm.reporting.report import main as report
         from ccm.suite.cli import main as suite
@@ -374,13 +378,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "animate": animate,
                 "demo": demo,
                 "suite": suite,
+                "compare-engines": compare_engines,
             }
             return commands[argv[0]](argv[1:])
         except ConfigError as exc:
             return _fail(str(exc), EXIT_CONFIG)
     return _fail(
         f"unknown command {argv[0]!r}; allowed: run, list, report, paper, plots, animate, demo, "
-        "suite, --help",
+        "suite, compare-engines, --help",
         EXIT_CONFIG,
     )
 

@@ -22,6 +22,7 @@ The wall time of every sweep and of the whole pipeline goes to ``<out>/paper_tim
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import resource
 import subprocess
@@ -73,6 +74,7 @@ def sweep_command(
     return [*cmd, f"hydra/launcher={launcher}", f"hydra.sweep.dir={out / name}"]
 
 
+@functools.cache
 def experiment_sim(name: str) -> str:
     """The backend experiment ``name`` runs on (its composed ``sim.name``)."""
     from hydra import compose, initialize_config_dir
