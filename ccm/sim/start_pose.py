@@ -13,7 +13,10 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from ccm.core.errors import ConfigError
+import numpy as np
+
+from ccm.core.errors import ConfigError, check_vector
+from ccm.sim.panda import DOWN
 
 #: overlap [m] below which a start counts as touching, not inside (float round-off)
 TOLERANCE = 1e-6
@@ -62,3 +65,18 @@ def check_start_3d(scene: Any, point: Sequence[float], prefix: str = "task.scene
                 "task.start", f"the tool point {_fmt(point)} is inside {key} (a static box at "
                 f"{_fmt(center)}, size {_fmt(size)}); start outside it",
             )  # fmt: skip
+
+
+def start_pose_3d(scene: Any, start: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """The tool point's start position [m] and orientation (x, y, z, w) from ``task.start``:
+    ``[x, y, z]`` (the tool pointing down) or ``[x, y, z, qx, qy, qz, qw]`` (normalised),
+    checked against the scene (:func:`check_start_3d`)."""
+    st = check_vector("task.start", start, (3, 7))
+    position = st[:3].copy()
+    check_start_3d(scene, position)
+    if st.shape[0] == 3:
+        return position, np.array(DOWN)
+    nq = float(np.linalg.norm(st[3:]))
+    if nq < 1e-9:
+        raise ConfigError("task.start", "quaternion part must be non-zero")
+    return position, st[3:] / nq

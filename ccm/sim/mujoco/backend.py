@@ -33,7 +33,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ccm.core.errors import ConfigError, SimulationDiverged, check_vector
+from ccm.core.errors import ConfigError, SimulationDiverged
 from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim._kernels import tool_sense
 from ccm.sim.arm import TorqueLaw, arm_output, dls_ik
@@ -44,27 +44,18 @@ from ccm.sim.mujoco.config import MuJoCo3DConfig
 from ccm.sim.mujoco.model import panda_spec
 from ccm.sim.mujoco.robot import MjPanda
 from ccm.sim.mujoco.world import add_world
-from ccm.sim.panda import DOWN, GRAVITY, box_inertia
+from ccm.sim.panda import GRAVITY, box_inertia
 from ccm.sim.scene3d import Scene3D
 from ccm.sim.sensor import FTSensor
-from ccm.sim.start_pose import check_start_3d
+from ccm.sim.start_pose import start_pose_3d
 
 __all__ = ["MuJoCo3D", "MuJoCo3DConfig"]
 
 
 class MuJoCo3D(Simulator):
-    """A torque-controlled Panda with a block tool in a MuJoCo world.
-
-    Args:
-        scene: the parsed 3D scene.
-        start: tool-point start pose ``[x, y, z]`` (tool pointing down) or
-            ``[x, y, z, qx, qy, qz, qw]`` [m]; the arm starts at rest in the configuration
-            found by inverse kinematics from ``config.rest_posture``.
-        config: backend settings (defaults if ``None``).
-
-    Attributes:
-        max_speed: runaway guard [m/s] for :func:`ccm.sim.base.check_state_finite`.
-    """
+    """A torque-controlled Panda with a block tool in a MuJoCo world: the arguments, attributes
+    and promises of :class:`ccm.sim.pybullet.backend.PyBullet3D` (``scene``, the ``start`` pose
+    of ``task.start``, ``config``; ``max_speed``), on the other engine."""
 
     dim = 3
 
@@ -74,15 +65,7 @@ class MuJoCo3D(Simulator):
         self.config = config if config is not None else MuJoCo3DConfig()
         super().__init__(self.config.dt, self.config.control_decimation)
         self.scene = scene
-        st = check_vector("task.start", start, (3, 7))
-        self.start_position = st[:3].copy()
-        check_start_3d(scene, self.start_position)
-        self.start_orientation = np.array(DOWN)
-        if st.shape[0] == 7:
-            nq = float(np.linalg.norm(st[3:]))
-            if nq < 1e-9:
-                raise ConfigError("task.start", "quaternion part must be non-zero")
-            self.start_orientation = st[3:] / nq
+        self.start_position, self.start_orientation = start_pose_3d(scene, start)
         cfg = self.config
         self.max_speed = cfg.max_speed
         self.sensor = FTSensor(cfg.sensor, force_dim=3, torque_dim=3)

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ccm.core.errors import ConfigError, SimulationDiverged, check_vector
+from ccm.core.errors import SimulationDiverged
 from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim._kernels import tool_sense
 from ccm.sim.arm import arm_output
@@ -46,7 +46,7 @@ from ccm.sim.pybullet.torque_loop import TorqueLoop
 from ccm.sim.pybullet.world import build_world
 from ccm.sim.scene3d import Box3DSpec, Scene3D, TablePatch, TableSpec
 from ccm.sim.sensor import FTSensor
-from ccm.sim.start_pose import check_start_3d
+from ccm.sim.start_pose import start_pose_3d
 
 __all__ = [
     "DOWN", "GRAVITY", "N_ARM", "PANDA_READY", "PATCH_MODES", "Box3DSpec", "PyBullet3D",
@@ -79,16 +79,7 @@ class PyBullet3D(Simulator):
         self.config = config if config is not None else PyBullet3DConfig()
         super().__init__(self.config.dt, self.config.control_decimation)
         self.scene = scene
-        st = check_vector("task.start", start, (3, 7))
-        self.start_position = st[:3].copy()
-        check_start_3d(scene, self.start_position)
-        if st.shape[0] == 7:
-            nq = float(np.linalg.norm(st[3:]))
-            if nq < 1e-9:
-                raise ConfigError("task.start", "quaternion part must be non-zero")
-            self.start_orientation = st[3:] / nq
-        else:
-            self.start_orientation = np.array(DOWN)
+        self.start_position, self.start_orientation = start_pose_3d(scene, start)
         self.max_speed = self.config.max_speed
         self.sensor = FTSensor(self.config.sensor, force_dim=3, torque_dim=3)
         tool = self.config.tool
