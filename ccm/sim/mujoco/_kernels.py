@@ -75,3 +75,42 @@ def contact_truth(
             best, out[7] = fn, friction[other]
     out[10] = np.sqrt(bx * bx + by * by + bz * bz)
     return out, table_pos[:k], table_fn[:k]
+
+
+@njit(cache=True)
+def tool_state(
+    com: np.ndarray,
+    quat_wxyz: np.ndarray,
+    velocity: np.ndarray,
+    rot_now: np.ndarray,
+    rot_read: np.ndarray,
+    raw: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The tool's centre-of-mass state and F/T reading as :func:`ccm.sim._kernels.tool_sense`
+    takes them, from MuJoCo's arrays.
+
+    Args:
+        com: the F/T site's (the tool's centre of mass) position (3,); quat_wxyz: the tool's
+            orientation (w, x, y, z); velocity: the site's ``mj_objectVelocity`` (ω, v) (6,).
+        rot_now: the site's orientation matrix now (9,); rot_read: at the reading (9,).
+        raw: the force and torque sensors' reading (6,), in the site frame at the reading.
+
+    Returns:
+        ``(link, reading)``: position, orientation (x, y, z, w), linear and angular velocity
+        (13,); the reading in the current tool frame (6,) (``Rₙᵀ R_r raw``).
+    """
+    link = np.empty(13)
+    link[:3] = com
+    link[3], link[4], link[5], link[6] = quat_wxyz[1], quat_wxyz[2], quat_wxyz[3], quat_wxyz[0]
+    link[7:10] = velocity[3:]
+    link[10:] = velocity[:3]
+    reading = np.empty(6)
+    for part in range(2):
+        world = np.zeros(3)
+        for i in range(3):
+            for k in range(3):
+                world[i] += rot_read[3 * i + k] * raw[3 * part + k]
+        for i in range(3):
+            reading[3 * part + i] = (rot_now[i] * world[0] + rot_now[3 + i] * world[1]
+                                     + rot_now[6 + i] * world[2])  # fmt: skip
+    return link, reading

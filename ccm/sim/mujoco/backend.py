@@ -229,7 +229,7 @@ class MuJoCo3D(Simulator):
         d.ctrl[:] = self.law.torques(self._terms, self._wrench, q, dq, self._orn, self._tip[3])
         self._push_hand()
         mujoco.mj_step2(m, d)
-        robot.reading_world()
+        robot.keep_reading()
         truth, table = robot.contact_truth(self._tip[0], m.geom_friction[:, 0])
         self.table.observe(table)
         mujoco.mj_step1(m, d)

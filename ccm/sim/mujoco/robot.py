@@ -7,10 +7,10 @@ the contact ground truth.
   J̇ q̇ is the tool point's classical acceleration at q̈ = 0), h = ``qfrc_bias`` (gravity +
   Coriolis, no damping or armature in the model) and M⁻¹ (``mj_solveM`` on the factor
   ``mj_step1`` made). ``tests/test_mujoco_backend.py`` checks them against Pinocchio's.
-* **F/T reading.** The sensors are computed in :func:`mujoco.mj_step2` *before* it
-  integrates, in the tool frame of that moment; :meth:`MjPanda.reading_world` rotates them
-  to the world there, and :meth:`MjPanda.tool_link` expresses them in the next state's tool
-  frame, where :func:`ccm.sim._kernels.tool_sense` reads them.
+* **F/T reading.** The sensors are computed in :func:`mujoco.mj_step2` *before* it integrates,
+  in the tool frame of that moment; :meth:`MjPanda.keep_reading` keeps them with that frame, and
+  :meth:`MjPanda.tool_link` expresses them in the next state's tool frame, where
+  :func:`ccm.sim._kernels.tool_sense` reads them.
 * **Contact truth.** ``efc_force`` of each active contact of the tool geom, in its contact
   frame (normal then the two tangents: the elliptic cone's layout; the force on the
   contact's second geom, measured), rotated to the world and signed for the tool; the
@@ -55,8 +55,8 @@ class MjPanda:
         self._jac, self._jdot = np.zeros((6, N_ARM)), np.zeros((6, N_ARM))
         self._minv, self._eye = np.zeros((N_ARM, N_ARM)), np.eye(N_ARM)
         self._vel = np.zeros(6)
-        self._link = np.zeros(13)
-        self._reading = np.zeros(6)
+        self._raw = np.zeros(6)
+        self._rot_read = np.eye(3).ravel()
 
     # ------------------------------------------------------------------ kinematics
 
@@ -93,25 +93,20 @@ class MjPanda:
     def tool_link(self) -> tuple[np.ndarray, np.ndarray]:
         """The tool's centre of mass: position, orientation (x, y, z, w), linear and angular
         velocity (13,) as :func:`ccm.sim._kernels.tool_sense` reads them, and the last
-        :meth:`reading_world` in this state's tool frame (6,)."""
-        m, d, link = self.model, self.data, self._link
-        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, self.ft_site, self._vel, 0)
-        link[:3] = d.site_xpos[self.ft_site]
-        w, x, y, z = d.xquat[self.tool_body]
-        link[3:7] = x, y, z, w
-        link[7:10] = self._vel[3:]
-        link[10:] = self._vel[:3]
-        rot = d.site_xmat[self.ft_site].reshape(3, 3)
-        local = np.concatenate([rot.T @ self._reading[:3], rot.T @ self._reading[3:]])
-        return link.copy(), local
+        :meth:`keep_reading` in this state's tool frame (6,)
+        (:func:`ccm.sim.mujoco._kernels.tool_state`)."""
+        m, d, ft = self.model, self.data, self.ft_site
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, ft, self._vel, 0)
+        return _k.tool_state(d.site_xpos[ft], d.xquat[self.tool_body], self._vel,
+                             d.site_xmat[ft], self._rot_read, self._raw)  # fmt: skip
 
-    def reading_world(self) -> None:
+    def keep_reading(self) -> None:
         """After :func:`mujoco.mj_step2`: keep the F/T sensors' reading (the hand on the tool,
-        the moment about its centre of mass) rotated to the world (module docstring)."""
+        the moment about its centre of mass, in the tool frame of that moment) and that
+        frame (module docstring)."""
         d = self.data
-        rot = d.site_xmat[self.ft_site].reshape(3, 3)
-        self._reading[:3] = rot @ d.sensordata[:3]
-        self._reading[3:] = rot @ d.sensordata[3:6]
+        self._raw[:] = d.sensordata[:6]
+        self._rot_read[:] = d.site_xmat[self.ft_site]
 
     def contact_truth(
         self, tip: np.ndarray, friction: np.ndarray
