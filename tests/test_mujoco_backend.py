@@ -149,3 +149,14 @@ def test_sliding_reads_the_friction_on_the_sensor() -> None:
         ratio = -slide[:, 8].mean() / slide[:, 4].mean()
         assert 0.29 <= ratio <= 0.31, (engine, ratio)
         assert slide[:, 4].std() < 0.5, engine
+
+
+def test_the_viewer_without_a_display_is_one_line(monkeypatch) -> None:  # noqa: ANN001
+    """``sim.gui: true`` with no display: a ConfigError naming the key, before MuJoCo's viewer
+    could end the process (it exits when GLFW cannot start, measured)."""
+    from ccm.core.errors import ConfigError
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.raises(ConfigError, match="sim.gui: true needs a display"):
+        make_sim({"name": "mujoco3d", "gui": True}, TABLE, [0.45, 0.0, 0.13])

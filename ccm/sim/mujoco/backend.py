@@ -27,6 +27,8 @@ same as :class:`ccm.sim.pybullet.backend.PyBullet3D`, and what is not:
 
 from __future__ import annotations
 
+import os
+import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -67,6 +69,12 @@ class MuJoCo3D(Simulator):
         self.scene = scene
         self.start_position, self.start_orientation = start_pose_3d(scene, start)
         cfg = self.config
+        if (
+            cfg.gui
+            and sys.platform.startswith("linux")
+            and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+        ):  # MuJoCo's viewer would end the process (GLFW cannot start), not raise
+            raise ConfigError("sim.gui", "true needs a display (DISPLAY is not set); use false")
         self.max_speed = cfg.max_speed
         self.sensor = FTSensor(cfg.sensor, force_dim=3, torque_dim=3)
         self.law = TorqueLaw(cfg, self.start_orientation)
