@@ -53,6 +53,9 @@ def chosen(name: str) -> list[str]:
 MORE = [
     ("avic_anticipation", ["task=h4_impactless", "sim=pybullet3d"], 2000),
     ("avic_modes", ["task=changing_surface", "sim=pybullet3d"], 2000),
+    # the same two on the other 3-D engine (issue #42: every contract test of pybullet3d)
+    ("avic_anticipation", ["task=h4_impactless", "sim=mujoco3d"], 2000),
+    ("avic_modes", ["task=changing_surface", "sim=mujoco3d"], 2000),
     ("gp_mpc", ["task=multi_spring", "controller.force_delay_s=0.004"], 400),  # a latency
 ]
 
