@@ -124,14 +124,15 @@ def print_loop_rows(rows: Sequence[dict[str, Any]]) -> None:
     the µs of ccm's per-step interface alone and the ceiling × real time of raw + interface
     (:mod:`ccm.bench.interface`)."""
     print(
-        f"{'task':<19}{'controller':<23}{'sim [s]':>8}{'steps':>7}{'µs/step':>9}"
+        f"{'task':<23}{'controller':<23}{'sim [s]':>8}{'steps':>7}{'µs/step':>9}"
         f"{'× real time':>12}{'target':>7}{'raw µs':>8}{'ccm/raw':>8}{'iface µs':>9}"
         f"{'obj µs':>7}{'ceiling ×':>10}"
     )
     for r in rows:
         tgt = f"≥{r['target_x_realtime']:.0f}" if r["target_x_realtime"] else ""
+        engine = {"pybullet3d": " (PB)", "mujoco3d": " (MJ)"}.get(r.get("sim") or "", "")
         print(
-            f"{r['task']:<19}{r['controller']:<23}{r['sim_time_s']:>8.2f}"
+            f"{r['task'] + engine:<23}{r['controller']:<23}{r['sim_time_s']:>8.2f}"
             f"{r['control_steps']:>7d}{r['us_per_control_step']:>9.1f}"
             f"{r['x_realtime']:>12.1f}{tgt:>7}{r['raw_us_per_control_step']:>8.1f}"
             f"{r['ratio_vs_raw']:>8.2f}{r['interface_us_per_control_step']:>9.1f}"
@@ -140,7 +141,8 @@ def print_loop_rows(rows: Sequence[dict[str, Any]]) -> None:
     print(
         "iface: ccm's per-step interface alone (target, observation and truth updated in place,"
         " a command made, recorded and assembled); obj: the objects without the recorder;"
-        " ceiling: raw + iface, the most a controller behind this interface can reach"
+        " ceiling: raw + iface, the most a controller behind this interface can reach;"
+        " (PB) PyBullet, (MJ) MuJoCo"
     )
 
 
