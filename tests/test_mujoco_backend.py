@@ -133,7 +133,14 @@ def test_a_held_press_gives_the_same_force_and_face_stiffness() -> None:
     assert stiff[1] == pytest.approx(stiff[0], rel=0.1)
 
 
-def test_sliding_reads_the_friction_on_the_sensor() -> None:
+#: the tool tilted 10° from pointing down (190° about x): a tool frame whose rotation matrix
+#: is not symmetric (every 180° rotation's is), so a transposed frame change in the F/T path
+#: shows; the tool then slides on an edge of its face
+TILTED = [float(np.sin(np.radians(95.0))), 0.0, 0.0, float(np.cos(np.radians(95.0)))]
+
+
+@pytest.mark.parametrize("turn", [[], TILTED], ids=["down", "tilted"])
+def test_sliding_reads_the_friction_on_the_sensor(turn: list[float]) -> None:
     """Pressed with 10 N and dragged along x on μ = 0.3: the F/T reading follows the contact
     force, friction included, the friction is μ N on both engines, and the normal force is
     steady (module docstring)."""
@@ -142,10 +149,11 @@ def test_sliding_reads_the_friction_on_the_sensor() -> None:
         return np.array([0.45 + 0.05 * max(t - 0.6, 0.0), 0.0, 0.12 - 0.05 * t])
 
     for engine in ENGINES:
-        r = _run(engine, TABLE, [0.45, 0.0, 0.12], path, 1400,
+        r = _run(engine, TABLE, [0.45, 0.0, 0.12, *turn], path, 1400,
                  press=lambda t: 10.0 if t > 0.45 else None)  # fmt: skip
         slide = r[1000:]
         np.testing.assert_allclose(slide[:, 7], slide[:, 8], atol=0.2)
+        np.testing.assert_allclose(slide[:, 6], slide[:, 4], atol=0.2)  # z: F/T = truth
         ratio = -slide[:, 8].mean() / slide[:, 4].mean()
         assert 0.29 <= ratio <= 0.31, (engine, ratio)
         assert slide[:, 4].std() < 0.5, engine

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from ccm.core.errors import ConfigError, SimulationDiverged
-from ccm.core.types import Observation, StepInfo
+from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim._kernels import orientation_error, task_space, torque_law, translational_inertia
 from ccm.sim.arm_config import ArmConfig
 from ccm.sim.base import all_finite
@@ -237,3 +237,26 @@ def arm_output(
         },
     )
     return obs, info
+
+
+def hold_command(command: Command, wrench: np.ndarray, t: float) -> np.ndarray:
+    """Copy ``command`` into the reused ``wrench`` buffer [f; m] (6,) for a 3-D backend's
+    control step and return it.
+
+    Raises:
+        ValueError: if the force or torque is not a 3-vector.
+        SimulationDiverged: on a non-finite entry (``t``: the time, for the message).
+    """
+    f_cmd, t_cmd = command.force, command.torque
+    if len(f_cmd) != 3 or len(t_cmd) != 3:
+        raise ValueError(
+            f"command must have force (3,) and torque (3,), got {np.shape(f_cmd)}, "
+            f"{np.shape(t_cmd)}"
+        )
+    wrench[:3], wrench[3:] = f_cmd, t_cmd
+    if not all_finite(wrench):
+        raise SimulationDiverged(
+            f"non-finite command force={np.asarray(f_cmd).tolist()} "
+            f"torque={np.asarray(t_cmd).tolist()} at t={t:.3f} s"
+        )
+    return wrench

@@ -38,7 +38,7 @@ import numpy as np
 from ccm.core.errors import ConfigError, SimulationDiverged
 from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim._kernels import tool_sense
-from ccm.sim.arm import TorqueLaw, arm_output, dls_ik
+from ccm.sim.arm import TorqueLaw, arm_output, dls_ik, hold_command
 from ccm.sim.base import Simulator, all_finite
 from ccm.sim.footprint import TableFriction
 from ccm.sim.hand import Hand
@@ -162,19 +162,7 @@ class MuJoCo3D(Simulator):
         """
         if self._robot is None:
             raise RuntimeError("MuJoCo3D.step() called before reset()")
-        f_cmd, t_cmd = command.force, command.torque
-        if len(f_cmd) != 3 or len(t_cmd) != 3:
-            raise ValueError(
-                f"command must have force (3,) and torque (3,), got {np.shape(f_cmd)}, "
-                f"{np.shape(t_cmd)}"
-            )
-        wrench = self._wrench
-        wrench[:3], wrench[3:] = f_cmd, t_cmd
-        if not all_finite(wrench):
-            raise SimulationDiverged(
-                f"non-finite command force={np.asarray(f_cmd).tolist()} "
-                f"torque={np.asarray(t_cmd).tolist()} at t={self._steps * self.dt:.3f} s"
-            )
+        hold_command(command, self._wrench, self._steps * self.dt)  # read by _physics_step
         hold = self.control_decimation
         total: list[Any] = []
         hand_sum = np.zeros(3)

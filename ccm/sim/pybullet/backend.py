@@ -28,7 +28,7 @@ import numpy as np
 from ccm.core.errors import SimulationDiverged
 from ccm.core.types import Command, Observation, StepInfo
 from ccm.sim._kernels import tool_sense
-from ccm.sim.arm import arm_output
+from ccm.sim.arm import arm_output, hold_command
 from ccm.sim.base import Simulator, all_finite
 from ccm.sim.footprint import TableFriction
 from ccm.sim.hand import Hand
@@ -196,19 +196,8 @@ class PyBullet3D(Simulator):
         """
         if self._client is None:
             raise RuntimeError("PyBullet3D.step() called before reset()")
-        f_cmd, t_cmd = command.force, command.torque
-        if len(f_cmd) != 3 or len(t_cmd) != 3:
-            raise ValueError(
-                f"command must have force (3,) and torque (3,), got {np.shape(f_cmd)}, "
-                f"{np.shape(t_cmd)}"
-            )
-        wrench = self._wrench  # the torque law reads it during this call only
-        wrench[:3], wrench[3:] = f_cmd, t_cmd
-        if not all_finite(wrench):
-            raise SimulationDiverged(
-                f"non-finite command force={np.asarray(f_cmd).tolist()} "
-                f"torque={np.asarray(t_cmd).tolist()} at t={self._steps * self.dt:.3f} s"
-            )
+        # the torque law reads the buffer during this call only
+        wrench = hold_command(command, self._wrench, self._steps * self.dt)
         p, cid, hold = self._p, self._client, self.control_decimation
         total: list[np.ndarray] = []  # sums of f, m, kf, km, split over the period
         hand_sum = np.zeros(3)
