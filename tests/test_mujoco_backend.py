@@ -17,9 +17,12 @@ on both engines, through :func:`ccm.sim.make_sim` with each backend's default se
   is 100 N s/m per point where PyBullet's is 1000: MuJoCo's damping is explicit and 1000
   chatters at 1 kHz (``configs/sim/mujoco3d.yaml``); at 600 its peaks are 0.97-1.11 of
   PyBullet's, and a held press chatters. Tested: the ratio in [0.4, 1.0] at the defaults;
-* **sliding** at 5 cm/s under 10 N on μ = 0.3: friction / normal = 0.300 on both, the F/T
-  reading equals the contact force, and the normal force's std is 0.18 N (PyBullet) and
-  0.32 N (MuJoCo), tested below 0.5 N.
+* **sliding** under 10 N on μ = 0.3: friction / normal = 0.300 on both, the F/T reading
+  equals the contact force, and the normal force is as steady on both: its std over the
+  slide's first 0.4 s at 5 / 15 cm/s is 0.18 / 0.56 N (PyBullet) and 0.14 / 0.62 N (MuJoCo);
+  tilted 10°, 0.13 / 0.41 and 0.10 / 0.51 (measured). Tested: below 0.8 N, and MuJoCo's at
+  most 1.5 × PyBullet's. Without the friction rows of :func:`ccm.sim.mujoco.world.add_pairs`
+  (``sim.impratio`` 1) MuJoCo's at 15 cm/s is ~6 N: the tool leaves the table.
 """
 
 from __future__ import annotations
@@ -139,15 +142,17 @@ def test_a_held_press_gives_the_same_force_and_face_stiffness() -> None:
 TILTED = [float(np.sin(np.radians(95.0))), 0.0, 0.0, float(np.cos(np.radians(95.0)))]
 
 
+@pytest.mark.parametrize("speed", [0.05, 0.15])
 @pytest.mark.parametrize("turn", [[], TILTED], ids=["down", "tilted"])
-def test_sliding_reads_the_friction_on_the_sensor(turn: list[float]) -> None:
+def test_sliding_reads_the_friction_on_the_sensor(turn: list[float], speed: float) -> None:
     """Pressed with 10 N and dragged along x on μ = 0.3: the F/T reading follows the contact
     force, friction included, the friction is μ N on both engines, and the normal force is
-    steady (module docstring)."""
+    as steady on MuJoCo as on PyBullet (module docstring)."""
 
     def path(t: float) -> np.ndarray:
-        return np.array([0.45 + 0.05 * max(t - 0.6, 0.0), 0.0, 0.12 - 0.05 * t])
+        return np.array([0.45 + speed * max(t - 0.6, 0.0), 0.0, 0.12 - 0.05 * t])
 
+    spread = {}
     for engine in ENGINES:
         r = _run(engine, TABLE, [0.45, 0.0, 0.12, *turn], path, 1400,
                  press=lambda t: 10.0 if t > 0.45 else None)  # fmt: skip
@@ -156,7 +161,9 @@ def test_sliding_reads_the_friction_on_the_sensor(turn: list[float]) -> None:
         np.testing.assert_allclose(slide[:, 6], slide[:, 4], atol=0.2)  # z: F/T = truth
         ratio = -slide[:, 8].mean() / slide[:, 4].mean()
         assert 0.29 <= ratio <= 0.31, (engine, ratio)
-        assert slide[:, 4].std() < 0.5, engine
+        spread[engine] = slide[:, 4].std()
+        assert spread[engine] < 0.8, (engine, spread[engine])
+    assert spread["mujoco3d"] <= 1.5 * spread["pybullet3d"], spread
 
 
 def test_the_viewer_without_a_display_is_one_line(monkeypatch) -> None:  # noqa: ANN001

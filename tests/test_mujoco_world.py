@@ -11,7 +11,12 @@ Below it, MuJoCo's soft friction has no position term: the box creeps instead of
 0.35, 15 at 0.5, against 0.53 m/s without friction; PyBullet's Coulomb friction sticks). The
 agreement tests with PyBullet will have to allow for that creep, or the backend add stiction.
 Sliding, the soft friction passes a little less than μ N: the box gains up to 12 % more speed
-than Coulomb's (F − μ m g) / m gives (measured, μ = 0.35 and 0.5)."""
+than Coulomb's (F − μ m g) / m gives (measured, μ = 0.35 and 0.5).
+
+Sliding on the cone's surface, the box sinks ``r₀ (1 + μ_r²) − μ b_f v / k`` instead of r₀
+(:mod:`ccm.sim.mujoco.world`): at μ = 0.2, b = 100 /s, k = 1e4 /s², v = 0.1 m/s, 55.0 µm
+of the 245.2 at rest with MuJoCo's default friction rows (impratio 1, b_f = b), and 243.3 µm
+through :func:`ccm.sim.mujoco.world.add_pairs` at impratio 100 (measured: 55.10, 243.38)."""
 
 from __future__ import annotations
 
@@ -20,7 +25,7 @@ import pytest
 
 mujoco = pytest.importorskip("mujoco")
 
-from ccm.sim.mujoco.world import add_world, contact_params  # noqa: E402
+from ccm.sim.mujoco.world import add_pairs, add_world, contact_params  # noqa: E402
 from ccm.sim.scene3d import Scene3D  # noqa: E402
 
 TABLE = {
@@ -129,3 +134,34 @@ def test_the_surfaces_friction_holds_or_gives(mode: str, x: float, mu: float) ->
             assert coulomb <= v <= 1.15 * coulomb
         else:  # a creep (module docstring), far below the frictionless 0.26 m/s
             assert 0.0 <= v < 0.02
+
+
+@pytest.mark.parametrize("impratio", [1.0, 100.0])
+def test_sliding_lifts_the_face_by_the_cones_coupling(impratio: float) -> None:
+    """Pushed along at 0.1 m/s with μ m g (so at a steady speed) through the pairs of
+    :func:`add_pairs`, the box sinks r₀ (1 + μ_r²) − μ b_f v / k, with b_f = b / impratio and
+    μ_r² = μ² / impratio (module docstring): 55 µm of 245 at impratio 1; 243 at 100."""
+    k, b, v, mu = 1.0e4, 100.0, 0.1, 0.2
+    scene = Scene3D.from_mapping({"table": TABLE})
+    spec = mujoco.MjSpec()
+    spec.option.timestep = 0.001
+    spec.option.gravity = [0.0, 0.0, -9.81]
+    world = add_world(spec, scene, "friction_map", k, b, 1.0)
+    body = spec.worldbody.add_body(name="probe", pos=[0.25, 0.0, 0.1 + 0.02 + 2e-4])
+    body.add_freejoint()
+    body.add_geom(name="probe", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02] * 3, mass=1.0,
+                  contype=0, conaffinity=0)  # fmt: skip
+    add_pairs(spec, world, ["probe"], k, b, 1.0, impratio)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    for _ in range(1000):
+        mujoco.mj_step(model, data)
+    rest = 0.12 - data.qpos[2]
+    assert rest == pytest.approx(9.81 / (4 * k), rel=1e-3)
+    data.qvel[0] = v
+    for _ in range(300):
+        data.xfrc_applied[model.body("probe").id, 0] = mu * 9.81
+        mujoco.mj_step(model, data)
+    assert data.qvel[0] == pytest.approx(v, rel=1e-3)
+    expected = rest * (1 + mu**2 / impratio) - mu * (b / impratio) * v / k
+    assert 0.12 - data.qpos[2] == pytest.approx(expected, abs=0.5e-6)

@@ -29,11 +29,11 @@ def contact_truth(
         geom: the contacts' geom pairs (n, 2); efc_address: their first constraint row (n,),
             −1 if inactive; efc_force: the constraint forces; frame: (n, 9); pos: (n, 3).
         tool_geom: the tool's geom id; is_box: per geom, whether it is a scene box (wall);
-            friction: per geom, its sliding friction; tip: the tool point [m] (3,).
+            friction: per contact, its sliding friction (n,); tip: the tool point [m] (3,).
 
     Returns:
         ``(out, table_pos, table_fn)``: ``out`` = (force on the tool (3), moment about
-        ``tip`` (3), count, friction of the geom with the largest normal force (−1 if
+        ``tip`` (3), count, friction of the contact with the largest normal force (−1 if
         none), table normal, box normal, |box friction|, normal part x, y, z) (14,); the
         table contacts' positions (k, 3) and normal forces (k,).
     """
@@ -72,7 +72,7 @@ def contact_truth(
             table_fn[k] = fn
             k += 1
         if fn > best:
-            best, out[7] = fn, friction[other]
+            best, out[7] = fn, friction[i]
     out[10] = np.sqrt(bx * bx + by * by + bz * bz)
     return out, table_pos[:k], table_fn[:k]
 

@@ -45,7 +45,7 @@ from ccm.sim.hand import Hand
 from ccm.sim.mujoco.config import MuJoCo3DConfig
 from ccm.sim.mujoco.model import panda_spec
 from ccm.sim.mujoco.robot import MjPanda
-from ccm.sim.mujoco.world import add_world
+from ccm.sim.mujoco.world import add_pairs, add_world
 from ccm.sim.panda import GRAVITY, box_inertia
 from ccm.sim.scene3d import Scene3D
 from ccm.sim.sensor import FTSensor
@@ -87,7 +87,7 @@ class MuJoCo3D(Simulator):
         self._hand = Hand(scene.human, self.dt) if scene.human is not None else None
         self._hand_mean = np.zeros(3)
         self._robot: MjPanda | None = None
-        self._table_geom = -1
+        self._table_pairs = np.zeros(0, dtype=np.intp)
         self._wrench = np.zeros(6)
         self._steps = 0
         self._viewer: Any = None
@@ -133,9 +133,10 @@ class MuJoCo3D(Simulator):
         robot = self._robot
         m, d = robot.model, robot.data
         mujoco.mj_resetData(m, d)
-        if self._table_geom >= 0 and self.table.patches:
-            m.geom_friction[self._table_geom, 0] = self.table.base
-        self.table.attach(self._patch_map, self.table.base if self._table_geom >= 0 else None)
+        if self.table.patches:
+            m.pair_friction[self._table_pairs, :2] = self.table.base
+        one_box = len(self._table_pairs) > 0
+        self.table.attach(self._patch_map, self.table.base if one_box else None)
         if self._q_start is None:
             self._q_start = dls_ik(robot.pose, robot.jacobian, robot.limits,
                                    self.config.rest_posture, self.start_position,
@@ -199,10 +200,13 @@ class MuJoCo3D(Simulator):
         """Compile the Panda and the scene's static world (once per simulator)."""
         cfg = self.config
         spec = panda_spec(cfg.tool, cfg.dt)
-        world = add_world(spec, self.scene, cfg.patch_mode, cfg.contact_stiffness,
-                          cfg.contact_damping, cfg.contact_mass_kg)  # fmt: skip
+        robot_geoms = [geom.name for geom in spec.geoms]
+        contact = (cfg.contact_stiffness, cfg.contact_damping, cfg.contact_mass_kg)
+        world = add_world(spec, self.scene, cfg.patch_mode, *contact)
+        add_pairs(spec, world, robot_geoms, *contact, cfg.impratio)
         robot = MjPanda(spec.compile(), world.box_geoms)
-        self._table_geom = robot.model.geom(world.table_geom).id if world.table_geom else -1
+        self._table_pairs = np.array([robot.model.pair(n).id for n in world.table_pairs],
+                                     dtype=np.intp)  # fmt: skip
         self._patch_map = world.patch_map
         if cfg.gui:
             self._viewer = _open_viewer(robot)
@@ -215,8 +219,8 @@ class MuJoCo3D(Simulator):
         robot = self._arm()
         m, d = robot.model, robot.data
         mu = self.table.update(self._tip[0], self._rot[:, :2])
-        if mu is not None:
-            m.geom_friction[self._table_geom, 0] = mu
+        if mu is not None:  # the table's pairs: the contacts mj_step1 detects next
+            m.pair_friction[self._table_pairs, :2] = mu
         q, dq = d.qpos.copy(), d.qvel.copy()
         if not all_finite(q, dq):
             raise SimulationDiverged(
@@ -226,7 +230,7 @@ class MuJoCo3D(Simulator):
         self._push_hand()
         mujoco.mj_step2(m, d)
         robot.keep_reading()
-        truth, table = robot.contact_truth(self._tip[0], m.geom_friction[:, 0])
+        truth, table = robot.contact_truth(self._tip[0])
         self.table.observe(table)
         mujoco.mj_step1(m, d)
         self._refresh()

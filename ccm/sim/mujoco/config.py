@@ -25,9 +25,13 @@ class MuJoCo3DConfig(ArmConfig):
         contact_mass_kg: the contact mass m_c [kg] that maps ``contact_stiffness`` and
             ``contact_damping`` (per point, force units) to MuJoCo's acceleration-level
             ``solref`` (:func:`ccm.sim.mujoco.world.contact_params`).
+        impratio: MuJoCo's ratio of the friction rows' impedance to the normal's; the
+            friction rows' damping is ``contact_damping / impratio``, which keeps the
+            sliding contact on the table (:func:`ccm.sim.mujoco.world.add_pairs`).
     """
 
     NAME = "mujoco3d"
 
     contact_damping: float = checked(check_positive, 100.0)
     contact_mass_kg: float = checked(check_positive, 2.38)
+    impratio: float = checked(check_positive, 100.0)

@@ -21,8 +21,10 @@ The same robot as the PyBullet backend (:mod:`ccm.sim.panda`):
   reads +m g upward in the world frame. That is the PyBullet backend's joint reading, and
   the backend turns it into the external wrench at the tool point the same way
   (:func:`ccm.sim._kernels.tool_sense`).
-* **Collisions**: the robot's geoms collide with the world's and not with each other
-  (``contype`` 1, ``conaffinity`` 0), as in PyBullet without self-collision.
+* **Collisions**: the robot's geoms, named ``<body>/<i>``, make no contacts of their own
+  (``contype`` and ``conaffinity`` 0): a scene pairs each with every static geom
+  (:func:`ccm.sim.mujoco.world.add_pairs`), so they collide with the world's and not with
+  each other, as in PyBullet without self-collision.
 * **Gravity** ``(0, 0, −g)`` and the time step ``dt`` as the ``sim`` config gives them.
 """
 
@@ -54,6 +56,7 @@ def panda_spec(tool: ToolSpec, dt: float = 0.001) -> mujoco.MjSpec:
         shutil.rmtree(tmp, ignore_errors=True)
     end = text.index(">", text.index("<robot")) + 1  # MuJoCo's settings go inside <robot>
     spec = mujoco.MjSpec.from_string(text[:end] + _COMPILER + text[end:])
+    spec.compiler.discardvisual = False  # else it drops the robot's pair-only geoms (below)
     spec.option.timestep = dt
     spec.option.gravity = [0.0, 0.0, -GRAVITY]
     _set_inertials(spec, pybullet_inertials(tool))
@@ -69,8 +72,10 @@ def panda_spec(tool: ToolSpec, dt: float = 0.001) -> mujoco.MjSpec:
     for kind, name in ((mujoco.mjtSensor.mjSENS_FORCE, "ccm_ft_force"),
                        (mujoco.mjtSensor.mjSENS_TORQUE, "ccm_ft_torque")):  # fmt: skip
         spec.add_sensor(name=name, type=kind, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=FT_SITE)
-    for geom in spec.geoms:  # every geom so far is the robot's
-        geom.contype, geom.conaffinity = 1, 0
+    for body in spec.bodies:  # every geom so far is the robot's: named for its pairs
+        for i, geom in enumerate(body.geoms):
+            geom.name = f"{body.name}/{i}"
+            geom.contype, geom.conaffinity = 0, 0
     return spec
 
 

@@ -109,12 +109,12 @@ class MjPanda:
         self._rot_read[:] = d.site_xmat[self.ft_site]
 
     def contact_truth(
-        self, tip: np.ndarray, friction: np.ndarray
+        self, tip: np.ndarray
     ) -> tuple[tuple[np.ndarray, np.ndarray, int, float, np.ndarray], list[tuple[Any, float]]]:
         """After :func:`mujoco.mj_step2`: the tool's contact force, moment about ``tip``,
-        count, the friction (``friction[geom]``) of the geom carrying the largest normal
-        force and ``(table normal, box normal, |box friction|, normal part x, y, z)`` [N]; and
-        the table contacts ``(position, normal force)`` for the footprint friction. Each
+        count, the sliding friction of the contact carrying the largest normal force and
+        ``(table normal, box normal, |box friction|, normal part x, y, z)`` [N]; and the
+        table contacts ``(position, normal force)`` for the footprint friction. Each
         active contact of the tool's geom contributes its ``efc_force`` (normal, then the
         two tangential forces on the contact's second geom, in its frame), signed for the
         tool (:func:`ccm.sim.mujoco._kernels.contact_truth`)."""
@@ -124,7 +124,7 @@ class MjPanda:
         con = d.contact
         out, table_pos, table_fn = _k.contact_truth(
             con.geom, con.efc_address, d.efc_force, con.frame, con.pos, self.tool_geom,
-            self._is_box, friction, tip,
+            self._is_box, con.friction[:, 0], tip,
         )  # fmt: skip
         truth = (out[:3], out[3:6], int(out[6]), float(out[7]), out[8:])
         return truth, list(zip(table_pos, table_fn.tolist(), strict=True))

@@ -34,9 +34,22 @@ the contact settings, each measured (``tests/test_mujoco_world.py``):
   gives. MuJoCo's friction is soft: below μ N a pushed body creeps (mm/s) rather than
   sticks, and sliding it passes a little less than μ N; the PyBullet backend's Coulomb
   friction sticks.
-* **Collisions.** Static geoms collide with the robot's and not with each other
-  (``contype`` 0, ``conaffinity`` 1); the robot's geoms do not collide with each other
-  (:mod:`ccm.sim.mujoco.model`), as PyBullet does without self-collision.
+* **The cone couples friction into the normal force.** In MuJoCo's soft contact a sliding
+  contact sits on the elliptic cone's surface, where the normal force is
+  ``m (k r + b v_n + μ b_f |v_t|) / (1 + μ_r²)`` (MuJoCo's ``mj_constraintUpdate``, middle
+  zone; ``b_f`` the friction rows' damping, ``μ_r = μ / √impratio``): the slip speed v_t lifts
+  the contact. With ``b_f = b`` (MuJoCo's default) the Panda's tool pressed with 10 N rose
+  from 25 µm to 10 µm penetration at 6 cm/s, and from 0.1 m/s it left the table and fell
+  back (normal-force std 3.4 N at 0.1 m/s, 6.4 N at 0.15; PyBullet 0.11, 0.31; measured).
+  :func:`add_pairs` therefore gives the friction rows ``b_f = b / impratio`` and the cone
+  ``impratio``: a sticking contact keeps the viscosity ``C`` per point (its friction rows'
+  impedance is ``impratio`` times the normal's), and the lift falls ``impratio`` times
+  (``sim.impratio`` says what was measured). MuJoCo sets ``solreffriction`` only on explicit
+  contact pairs, so every robot geom meets every static geom through a pair.
+* **Collisions.** Only those pairs make contacts: the robot's geoms have ``contype`` and
+  ``conaffinity`` 0 (:mod:`ccm.sim.mujoco.model`), so they do not collide with each other, as
+  PyBullet does without self-collision; static geoms (``contype`` 0, ``conaffinity`` 1) do
+  not collide with each other.
 """
 
 from __future__ import annotations
@@ -63,12 +76,15 @@ class World:
         table_geom: the table's geom when one box carries it ("" otherwise).
         patch_map: (x0, x1, y0, y1, μ) of each patch for the friction under the tool.
         box_geoms: the names of the scene's boxes.
+        table_pairs: the contact pairs of ``table_geom`` (:func:`add_pairs`), whose friction
+            the backend sets under the tool.
     """
 
     geom_friction: dict[str, float] = field(default_factory=dict)
     table_geom: str = ""
     patch_map: list[tuple[float, float, float, float, float]] = field(default_factory=list)
     box_geoms: list[str] = field(default_factory=list)
+    table_pairs: list[str] = field(default_factory=list)
 
 
 def contact_params(stiffness: float, damping: float, mass: float) -> dict[str, list[float]]:
@@ -76,6 +92,31 @@ def contact_params(stiffness: float, damping: float, mass: float) -> dict[str, l
     damper ``damping`` [N s/m] per contact point on a body of contact mass ``mass`` [kg]:
     ``solref = (−K/m_c, −C/m_c)`` (module docstring)."""
     return {"solref": [-stiffness / mass, -damping / mass], "solimp": list(SOLIMP)}
+
+
+def friction_params(damping: float, mass: float, impratio: float) -> dict[str, list[float]]:
+    """``solreffriction`` of a contact pair whose friction rows keep a sticking viscosity of
+    ``damping`` [N s/m] per point on contact mass ``mass`` [kg] under the cone's ``impratio``:
+    ``b_f = C / (m_c · impratio)`` (module docstring; MuJoCo ignores a friction row's
+    stiffness)."""
+    return {"solreffriction": [0.0, -damping / (mass * impratio)]}
+
+
+def add_pairs(spec: mujoco.MjSpec, world: World, robot_geoms: Sequence[str], stiffness: float,
+              damping: float, mass: float, impratio: float) -> None:  # fmt: skip
+    """A contact pair of every robot geom with every static geom of ``world``: the static
+    geom's friction, the contact of :func:`contact_params`, the friction rows of
+    :func:`friction_params`; and the model's ``impratio`` (module docstring)."""
+    spec.option.impratio = impratio
+    contact = {**contact_params(stiffness, damping, mass),
+               **friction_params(damping, mass, impratio)}  # fmt: skip
+    for static, mu in world.geom_friction.items():
+        for geom in robot_geoms:
+            name = f"{geom}|{static}"
+            spec.add_pair(name=name, geomname1=static, geomname2=geom, condim=3,
+                          friction=[mu, mu, _SPIN, _ROLL, _ROLL], **contact)  # fmt: skip
+            if static == world.table_geom:
+                world.table_pairs.append(name)
 
 
 def add_world(spec: mujoco.MjSpec, scene: Scene3D, patch_mode: str, stiffness: float,
