@@ -55,7 +55,7 @@ commands:
                         by side -> B/cross_engine.md
   plots DIR…            draw a finished run's figures again from its files (a sweep
                         directory: each of its runs, --jobs N at a time)
-  animate RUN_DIR       a clip of one recorded trial (MP4 with ffmpeg, else GIF), replayed
+  animate RUN_DIR       a clip of one recorded trial (MP4; GIF with --out x.gif), replayed
                         from its time series: --condition C (default the first), --trial N
                         (default the last recorded), --out FILE, --fps F
   suite [OVERRIDES]     score a controller on the changing-contact benchmark and rank it

@@ -4,8 +4,8 @@ The clip replays ``timeseries/<condition>/trial_NNN.parquet`` (the controller ne
 again): 2D runs through :mod:`ccm.plots.animate2d` (matplotlib), 3D runs through
 :mod:`ccm.plots.animate3d` (PyBullet's offscreen renderer). The scene comes from the run's
 composed config (``.hydra/config.yaml``) with the condition's and the trial's phase's
-overrides of ``task.*`` / ``sim.*`` applied. Clips are MP4 when ffmpeg is on PATH, GIF
-otherwise (:mod:`ccm.plots.frames`), written to ``animations/<condition>/trial_NNN.<ext>`` by
+overrides of ``task.*`` / ``sim.*`` applied. Clips are MP4 (through imageio-ffmpeg's ffmpeg),
+GIF without one (:mod:`ccm.plots.frames`), written to ``animations/<condition>/trial_NNN.<ext>`` by
 default. Every bad argument raises :class:`ccm.core.errors.ConfigError` naming it.
 """
 
@@ -36,7 +36,7 @@ def check_config(cfg: Any) -> str:
 
 
 def clip_path(run_dir: Path, condition: str, trial: int, suffix: str | None = None) -> Path:
-    """``<run_dir>/animations/<condition>/trial_NNN.<mp4|gif>`` (by ffmpeg's presence)."""
+    """``<run_dir>/animations/<condition>/trial_NNN.<mp4|gif>`` (GIF only without an ffmpeg)."""
     name = f"trial_{int(trial):03d}{suffix or default_suffix()}"
     return Path(run_dir) / "animations" / condition / name
 

@@ -1,5 +1,8 @@
 """Frames of an animation, and writing them to MP4 (ffmpeg) or GIF (Pillow).
 
+MP4 needs no system install: the ``imageio-ffmpeg`` dependency ships an ffmpeg binary with
+libx264 (issue #43); an ffmpeg on PATH is the fallback.
+
 An animation replays one recorded trial (``timeseries/<condition>/trial_NNN.parquet``) in
 real time: frame ``k`` shows the last control step at or before ``t0 + k / fps``, and a clip of
 a trial recorded over ``T`` seconds has ``ceil(T fps)`` frames (:func:`frame_steps`). Settings
@@ -29,7 +32,7 @@ from ccm.core.errors import (
 )
 from ccm.core.records import atomic_path
 
-#: clip formats: MP4 through ffmpeg (on PATH), GIF through Pillow otherwise
+#: clip formats: MP4 through ffmpeg (:func:`ffmpeg`), GIF through Pillow otherwise
 FORMATS = (".mp4", ".gif")
 _CAMERA_KEYS = ("distance", "yaw", "pitch", "target", "fov")
 
@@ -128,12 +131,18 @@ def frame_steps(t: np.ndarray, fps: float) -> np.ndarray:
 
 
 def ffmpeg() -> str | None:
-    """The ffmpeg executable on PATH, or None (then clips are GIFs)."""
-    return shutil.which("ffmpeg")
+    """The ffmpeg executable: imageio-ffmpeg's bundled binary, else one on PATH, else
+    ``None`` (then clips are GIFs)."""
+    try:
+        import imageio_ffmpeg
+
+        return imageio_ffmpeg.get_ffmpeg_exe()
+    except (ImportError, RuntimeError):  # not installed, or no binary for this platform
+        return shutil.which("ffmpeg")
 
 
 def default_suffix() -> str:
-    """``.mp4`` when ffmpeg is on PATH, else ``.gif``."""
+    """``.mp4`` when an ffmpeg is available (:func:`ffmpeg`), else ``.gif``."""
     return ".mp4" if ffmpeg() else ".gif"
 
 
@@ -143,7 +152,9 @@ def check_out(path: Path) -> Path:
     if path.suffix.lower() not in FORMATS:
         raise ConfigError("--out", f"must end in .mp4 or .gif, got {str(path)!r}")
     if path.suffix.lower() == ".mp4" and ffmpeg() is None:
-        raise ConfigError("--out", "an .mp4 needs ffmpeg on PATH, which is not there; use .gif")
+        raise ConfigError(
+            "--out", "an .mp4 needs ffmpeg (pip install imageio-ffmpeg, or one on PATH); use .gif"
+        )
     if path.is_dir():
         raise ConfigError("--out", f"{path} is a directory; give a file ending in .mp4 or .gif")
     return path
@@ -163,7 +174,7 @@ def _write_mp4(path: Path, frames: Iterable[np.ndarray], fps: float) -> int:
     """H.264 (yuv420p, so any player shows it) through an ffmpeg pipe of raw RGB frames."""
     exe = ffmpeg()
     if exe is None:
-        raise ConfigError("--out", "an .mp4 needs ffmpeg on PATH; use .gif")
+        raise ConfigError("--out", "an .mp4 needs ffmpeg (pip install imageio-ffmpeg); use .gif")
     count, proc = 0, None
     try:
         for frame in frames:
