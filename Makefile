@@ -7,7 +7,7 @@ ARGS ?=
 # the experiment `make run` runs: the headline one (seed A H4, Fig. 16); make run EXP=smoke is quicker
 EXP ?= h4_collisions
 
-.PHONY: setup run test test-slow lint format bench clean reproduce-paper reproduce-paper-quick browser mutation suite-results
+.PHONY: setup run test test-slow lint format bench clean reproduce-paper reproduce-paper-quick browser mutation suite-results docs
 
 setup: $(STAMP)
 
@@ -66,9 +66,20 @@ suite-results: setup  ## regenerate the built-in controllers' stored suite resul
 bench: setup  ## speed table; also writes bench.json
 	$(BIN)/python -m ccm.bench --out bench.json --paper-dir $(PAPER_DIR)
 
+# the documentation site (issue #43; mkdocs.yml): the docs extra (also in dev), then a strict
+# build, so a broken link or a docstring mkdocstrings cannot read fails it
+DOCS_STAMP := $(VENV)/.docs-stamp
+
+$(DOCS_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[docs]'
+	touch $(DOCS_STAMP)
+
+docs: setup $(DOCS_STAMP)  ## the documentation site into site/ (open site/index.html)
+	$(BIN)/mkdocs build --strict -d site
+
 mutation: setup  ## mutation testing of the equations' packages (issue #39; not in CI; ARGS=target ...)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check 'mutmut==3.8.1'
 	$(BIN)/python tools/mutation.py $(ARGS)
 
 clean:
-	rm -rf $(VENV) outputs multirun bench.json .pytest_cache .ruff_cache
+	rm -rf $(VENV) outputs multirun bench.json .pytest_cache .ruff_cache site
