@@ -69,10 +69,12 @@ def transition_force(
     """Eq. 8's force for stiffness and damping ``gains`` = (K*, D*).
 
     Args:
-        obs, target: this step's observation and target.
+        obs: this step's observation.
+        target: this step's target.
         gains: K* [N/m] and D* [N s/m] (a scalar, or (n, n) for the arm's Λ(q)).
-        mass_kg, inertia_feedforward: as :func:`ccm.control.loop.impedance_term` (the mass
-            or Λ(q), :meth:`ccm.control.loop.HybridLoop.inertia_of`).
+        mass_kg: as :func:`ccm.control.loop.impedance_term` (the mass or Λ(q),
+            :meth:`ccm.control.loop.HybridLoop.inertia_of`).
+        inertia_feedforward: as :func:`ccm.control.loop.impedance_term`.
         force_loop: the base's force-loop force u_fc this step, replacing the impedance
             along the commanded force direction; None keeps the impedance there.
         feedforward: the base's λ Ŵ this step, subtracted as in Eq. 4a (u_ff); None: none.

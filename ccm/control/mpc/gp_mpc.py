@@ -53,16 +53,22 @@ class GPMPC(Controller):
 
     Args:
         mass_kg: the end-effector mass the robot knows (inertial feed-forward) [kg].
-        inner_kp, inner_kd: stiff position loop tracking the admittance [N/m, N s/m].
-        rot_stiffness, rot_damping: orientation hold [N m/rad, N m s/rad].
-        init_mass, init_damping: M, D at the start of every execution trial (seed B §6.1:
-            the low-impedance condition keeps the minimum 5 kg and 500 N s/m).
+        inner_kp: stiffness of the stiff position loop tracking the admittance [N/m].
+        inner_kd: its damping [N s/m].
+        rot_stiffness: orientation hold's stiffness [N m/rad].
+        rot_damping: orientation hold's damping [N m s/rad].
+        init_mass: M at the start of every execution trial (seed B §6.1: the
+            low-impedance condition keeps the minimum 5 kg).
+        init_damping: D at the start of every execution trial (seed B §6.1: the
+            low-impedance condition keeps the minimum 500 N s/m).
         init_f_ref: f^r at the start of a trial [N].
         mpc: settings of :class:`GPMPCProblem` (horizon, ts, bounds, weights, options); or
             ``false`` for the fixed-impedance baseline.
         mpc_period_s: period of the MPC in simulated time [s].
         demo_modes: mode label of each demonstration trial (its length = number of demos).
-        demo_mass, demo_damping, demo_f_ref: the admittance rendered during demonstrations.
+        demo_mass: M of the admittance rendered during demonstrations.
+        demo_damping: D of that admittance.
+        demo_f_ref: f^r of that admittance.
         record_every: keep every k-th control step of a demonstration for the GP data.
         gp: keyword arguments of :class:`GPForceModels` (mean, hinge_form, bounds, restarts).
         max_points: at most this many GP training points per mode (evenly thinned).

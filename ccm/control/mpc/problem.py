@@ -122,33 +122,40 @@ class GPMPCProblem:
     Args:
         gp_modes: one set of casadi GP functions per mode n (``GPForceModels.casadi_functions``).
         n: task-space dimension (force and pose dimension of the GPs).
-        horizon: H, steps.
-        ts: MPC sample time T_s [s] of Eq. 5.
-        mass_bounds, damping_bounds: [min, max] of M_i [kg] and D_i [N s/m].
-        delta_mass_max, delta_damping_max: rate limits |ΔM_i|, |ΔD_i| per solve.
-        f_ref_max: bound |f^r_i| [N]; f_ref_rate_max: |f^r_{τ+1} − f^r_τ| [N] per step,
-            also from the previous solve's f^r.
-        f_ref_target: the target of the f^r-target cost [N] (n,).
-        force_cost: ``"mean"`` (μ^fᵀ Q_f μ^f, Eq. 14) or ``"human_match"`` ((μ^f + f^r)ᵀ Q_H
-            (μ^f + f^r), seed B §4.2.1), both weighted by ``weights.force``.
-        weights: cost weights (:class:`ccm.control.mpc.settings.Weights`, or a mapping).
-        continuity_slack: ϱ of Eq. 13.
-        gp_var_scale: factor on the GP variance in the dynamics (1 = the paper; seed B's
-            public reference code uses 10, a constant the paper does not state).
-        chance: None or {f_max [N], epsilon, quantile: "normal" | "paper_erfinv"} (Eq. 18).
-        well_damped: None or {zeta, stiffness: "gp_gradient" | "fixed", fixed_stiffness}
-            (Eq. 19-20).
-        disturbance: {alpha, omega_p} of F^d(s) = α s / (s + ω_p) (Eq. 16-17).
-        joint_torque: {shoulder [m] (3,), l1, l2 [m], z [m]: the TCP height used to pad a
-            2-D pose, velocity: "measured" | "predicted"} (Eq. 11, 15; f_H = D ẋ, seed B
-            §4.2.2, where ẋ "provides a weighting according to the direction of the expected
-            forces": ``measured`` takes ξ_t's velocity, a parameter, so the cost acts on D;
-            ``predicted`` the plan's own velocity, which the optimiser can lower instead).
-        ipopt: extra IPOPT options (e.g. max_iter, tol, hessian_approximation).
-        codegen: None (default): casadi evaluates the NLP functions. A string: C compiler
-            flags (e.g. "-O1"); the functions are generated as C, compiled once per GP fit
-            and cached on disk (:mod:`ccm.control.mpc.codegen`), same solution, faster solves.
         key: configuration-key prefix for errors.
+
+    Keyword Args:
+        horizon (int): H, steps.
+        ts (float): MPC sample time T_s [s] of Eq. 5.
+        mass_bounds (tuple[float, float]): [min, max] of M_i [kg].
+        damping_bounds (tuple[float, float]): [min, max] of D_i [N s/m].
+        delta_mass_max (float): rate limit |ΔM_i| per solve.
+        delta_damping_max (float): rate limit |ΔD_i| per solve.
+        f_ref_max (float): bound |f^r_i| [N].
+        f_ref_rate_max (float): |f^r_{τ+1} − f^r_τ| [N] per step, also from the previous
+            solve's f^r.
+        f_ref_target (float | Sequence[float]): the target of the f^r-target cost [N] (n,).
+        force_cost (str): ``"mean"`` (μ^fᵀ Q_f μ^f, Eq. 14) or ``"human_match"``
+            ((μ^f + f^r)ᵀ Q_H (μ^f + f^r), seed B §4.2.1), both weighted by ``weights.force``.
+        weights (Weights | Mapping): cost weights (:class:`ccm.control.mpc.settings.Weights`,
+            or a mapping).
+        continuity_slack (float): ϱ of Eq. 13.
+        gp_var_scale (float): factor on the GP variance in the dynamics (1 = the paper; seed B's
+            public reference code uses 10, a constant the paper does not state).
+        chance (Mapping | None): None or {f_max [N], epsilon, quantile: "normal" |
+            "paper_erfinv"} (Eq. 18).
+        well_damped (Mapping | None): None or {zeta, stiffness: "gp_gradient" | "fixed",
+            fixed_stiffness} (Eq. 19-20).
+        disturbance (Mapping | None): {alpha, omega_p} of F^d(s) = α s / (s + ω_p) (Eq. 16-17).
+        joint_torque (Mapping | None): {shoulder [m] (3,), l1, l2 [m], z [m]: the TCP height
+            used to pad a 2-D pose, velocity: "measured" | "predicted"} (Eq. 11, 15; f_H = D ẋ,
+            seed B §4.2.2, where ẋ "provides a weighting according to the direction of the
+            expected forces": ``measured`` takes ξ_t's velocity, a parameter, so the cost acts on D;
+            ``predicted`` the plan's own velocity, which the optimiser can lower instead).
+        ipopt (Mapping | None): extra IPOPT options (e.g. max_iter, tol, hessian_approximation).
+        codegen (str | None): None (default): casadi evaluates the NLP functions. A string: C
+            compiler flags (e.g. "-O1"); the functions are generated as C, compiled once per GP fit
+            and cached on disk (:mod:`ccm.control.mpc.codegen`), same solution, faster solves.
 
     The settings are checked by :meth:`ccm.control.mpc.settings.MPCSettings.parse`.
     """

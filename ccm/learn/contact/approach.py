@@ -52,7 +52,8 @@ class ApproachVelocityModel:
             estimate it from the measured impacts (rule 1).
         f_desired: Desired impact force F_d, N (seed A §4.5.1: 8).
         f_max: Maximum allowed impact force, N, >= f_desired (chosen 10).
-        v_min, v_max: Speed bounds, m/s (chosen 0.01 and 0.25).
+        v_min: Lower speed bound, m/s (chosen 0.01).
+        v_max: Upper speed bound, m/s (chosen 0.25).
         max_step: Largest speed change per trial, m/s (chosen 0.05).
         min_velocity_spread: Speed span needed to fit the line, m/s (chosen 0.005).
         use_model: Apply rule 2; False is plain Eq. 9.
