@@ -18,6 +18,10 @@ out differently:
   file's repository path as code text;
 * a link to a file that does not exist is left as it is, so the strict build fails on it.
 
+The docstrings name other objects with Sphinx roles (``:class:`ccm.control.loop.HybridLoop```),
+which mkdocstrings leaves as text: :func:`on_page_content` drops the role and links a full
+``ccm.`` path to its entry in the API reference where the site has one.
+
 Lists are written as GitHub reads them, and :func:`gfm_lists` lays them out as Python-Markdown
 reads them, so nested items and a list right under a paragraph render as on GitHub.
 """
@@ -37,6 +41,7 @@ _LINK = re.compile(
 )
 _ITEM = re.compile(r" *(?P<marker>[*+-]|\d+[.)])(?P<gap> +)\S")
 _FENCE = re.compile(r"\s*(```|~~~)")
+_ROLE = re.compile(r":(?:class|meth|func|mod|attr|data|exc|obj):<code>~?(?P<name>[^<]+)</code>")
 
 
 def _repo_root(config: Any) -> Path:
@@ -68,6 +73,20 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
     docs_dir = Path(config["docs_dir"]).resolve().relative_to(root).as_posix()
     page_repo = Path(page.file.abs_src_path).resolve().relative_to(root).as_posix()
     return site_markdown(markdown, page_repo, page.file.src_uri, docs_dir, root)
+
+
+def on_page_content(html: str, page: Any, config: Any, files: Any) -> str:
+    """Sphinx roles in the rendered docstrings: a ``ccm.`` path becomes an optional
+    cross-reference (mkdocs-autorefs links it if the API reference has it), the rest code."""
+    return _ROLE.sub(_role_ref, html)
+
+
+def _role_ref(m: re.Match[str]) -> str:
+    name = m.group("name")
+    code = f"<code>{name}</code>"
+    if name.startswith("ccm."):
+        return f'<autoref identifier="{name}" optional>{code}</autoref>'
+    return code
 
 
 def site_markdown(markdown: str, page_repo: str, page_site: str, docs_dir: str, root: Path) -> str:
