@@ -105,9 +105,10 @@ def test_a_broken_lab_file_of_the_packages_name_is_not_ignored(
     ],
 )
 def test_command_line_and_condition_precedence(condition: list[str], expected: float) -> None:
-    """Issue #39, as the README states it: a command-line key overrides the values of the config
-    option a condition selects (an ablation such as ``controller.loop.inertia=nominal`` reaches
-    every condition), and a key the condition sets itself overrides the command line."""
+    """Issue #39, as docs/user-guide/configs.md states it: a command-line key overrides the
+    values of the config option a condition selects (an ablation such as
+    ``controller.loop.inertia=nominal`` reaches every condition), and a key the condition sets
+    itself overrides the command line."""
     from hydra import initialize_config_dir
 
     from ccm.experiment.precheck import compose_extra

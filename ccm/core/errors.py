@@ -1,7 +1,8 @@
 """User-facing errors and input checks.
 
 Every check names the configuration key it guards and the allowed range, so the CLI can
-print one line and exit non-zero (the README's contract for bad input).
+print one line and exit non-zero (the contract for bad input: docs/user-guide/running.md, "What a
+run writes").
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""Trial time series (in memory) and atomic file writes for the run directory (layout: README;
-on disk: :mod:`ccm.core.timeseries`)."""
+"""Trial time series (in memory) and atomic file writes for the run directory (layout:
+docs/user-guide/running.md, "What a run writes"; on disk: :mod:`ccm.core.timeseries`)."""
 
 from __future__ import annotations
 

@@ -72,7 +72,7 @@ def check_targets(hydra: Any, trusted: bool) -> None:
                 raise ConfigError(
                     key, f"{value!r} is not one of ccm's or Hydra's own callables; a config "
                     f"that runs other code needs ccm run {TRUST_FLAG} (configs are code: "
-                    "README, 'Trusting a config')",
+                    "docs/user-guide/configs.md, 'Trusting a config')",
                 )  # fmt: skip
 
 

@@ -1,5 +1,5 @@
 """``load_run``: one run directory as pandas DataFrames, for analysis in a notebook or
-script (issue #19; README, "Analysing a run")::
+script (issue #19; docs/user-guide/running.md, "Time series, and analysing a run")::
 
     from ccm.reporting.load import load_run
 
