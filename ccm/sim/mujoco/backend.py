@@ -14,7 +14,9 @@ same as :class:`ccm.sim.pybullet.backend.PyBullet3D`, and what is not:
   the Observation and truth keys.
 * **Contact**: MuJoCo's soft constraints (:mod:`ccm.sim.mujoco.world`): the per-point spring
   and damper of ``sim.contact_stiffness`` / ``contact_damping``, mapped on the contact mass
-  ``sim.contact_mass_kg``; soft friction (a creep below μ N where Bullet sticks).
+  ``sim.contact_mass_kg``; soft friction (a creep below μ N where Bullet sticks), whose rows
+  have their own damping through contact pairs (``sim.impratio``) so that sliding does not
+  lift the tool.
 * **Order within a physics step.** ``mj_step1`` (kinematics, collisions, the model terms at
   the new state), then the torques, then ``mj_step2`` (constraint forces, sensors,
   integration). The F/T reading and the contact truth of a step are those of its start, as

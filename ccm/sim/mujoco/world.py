@@ -25,9 +25,10 @@ the contact settings, each measured (``tests/test_mujoco_world.py``):
   elliptic cone, which :func:`add_world` sets, it rests 4 k m stiff at every μ.
 * **Damping is explicit.** The reference acceleration uses the current velocity, so the
   damping must stay well inside one step: at 1 kHz, b = 1000 /s (the 1 kg box at C = 1000
-  N s/m) throws the box off, and the Panda's tool pressed with 10 N chatters from b ≈ 200 /s
-  (normal-force std 1.4 N; 4.2 N at 420 /s); sliding, it chatters from less
-  (``configs/sim/mujoco3d.yaml`` has the numbers behind the backend's default).
+  N s/m) throws the box off, and the Panda's tool held with 10 N on the table chatters at
+  b ≈ 250 /s (C = 600 N s/m on the backend's contact mass: force std 2.1 N; 4.7 N at C =
+  1000) and not at 126 /s (``configs/sim/mujoco3d.yaml`` has the numbers behind the
+  backend's default).
 * **The surface's friction.** MuJoCo takes the larger friction of two geoms, or the one of
   the geom with the higher ``priority``: static geoms get priority 1, so a contact has the
   surface's coefficient (and its ``solref``), as PyBullet's multiplication by the tool's 1
