@@ -5,7 +5,10 @@
   metric) and true external force ‖F_true‖ [N] — and one column per condition, first trial of
   each; y-axes shared per row. Spans where the transition-phase controller is active
   (``transition_alpha`` > 0) are shaded; detected collisions (``collision_event`` == 1) are
-  dashed red lines, quasi-static contacts (== 2) dashed grey ones.
+  dashed red lines, quasi-static contacts (== 2) dashed grey ones. The force row also draws
+  the task's hybrid force target (``force_target_N``, seed A Eq. 1 u_fc, where it is not 0)
+  and the impact force target F_d (``metrics.impact_force_target_N``, seed A Eq. 9) as
+  dashed lines; one legend for the figure, right of the top-right panel.
 * ``contact_transitions_last.png``: the same for the latest trial, when a condition has more
   than one.
 
@@ -24,6 +27,7 @@ import numpy as np
 from ccm.core.filters import derivatives
 from ccm.core.records import axes_columns
 from ccm.plots.modes import shade_runs
+from ccm.plots.style import bound_style, nonzero, outside_legend
 
 Log = Mapping[str, np.ndarray]
 
@@ -44,7 +48,7 @@ def _trial_label(name: str, trials: Sequence[Mapping[str, Any]], which: int) -> 
     return f"{name}, {'first' if which == 0 else 'latest'} trial"
 
 
-def _column(axs: Sequence[Any], log: Log, dim: int, lowpass_hz: float, legend: bool) -> None:
+def _column(axs: Sequence[Any], log: Log, dim: int, lowpass_hz: float) -> None:
     """Speed, acceleration and force of one trial, with transition spans and events."""
     t = np.asarray(log["t"], dtype=float)
     vel = axes_columns(log, "vel", dim)
@@ -58,37 +62,42 @@ def _column(axs: Sequence[Any], log: Log, dim: int, lowpass_hz: float, legend: b
     )
     alpha = log.get("transition_alpha")
     events = log.get("collision_event")
-    for r, (ax, (y, color)) in enumerate(zip(axs, series, strict=True)):
+    for ax, (y, color) in zip(axs, series, strict=True):
         ax.plot(t, y, color=color, lw=1.1)
-        first = legend and r == 0
         if alpha is not None:
-            label = "transition phase (α > 0)" if first else None
-            shade_runs(ax, t, np.asarray(alpha) > 0.0, label)
+            shade_runs(ax, t, np.asarray(alpha) > 0.0, "transition phase (α > 0)")
         if events is not None:
             ev = np.asarray(events, dtype=float)
             for code, col, text in ((1.0, "red", "collision event"), (2.0, "0.4", "quasi-static")):
-                for i, k in enumerate(np.flatnonzero(ev == code)):
-                    ax.axvline(
-                        t[k],
-                        color=col,
-                        ls="--",
-                        lw=1.0,
-                        label=text if first and i == 0 else None,
-                    )
+                for k in np.flatnonzero(ev == code):
+                    ax.axvline(t[k], color=col, ls="--", lw=1.0, label=text)
         ax.grid(alpha=0.3)
+    target = log.get("force_target_N")
+    if target is not None and np.any(np.asarray(target) != 0.0):
+        axs[2].step(t, nonzero(target), where="post", label="force target u_fc (task)",
+                    **bound_style("target"))  # fmt: skip
 
 
-def _figure(chosen: list[tuple[str, Log]], dim: int, lowpass_hz: float, title: str) -> Any:
+def _figure(
+    chosen: list[tuple[str, Log]], dim: int, lowpass_hz: float, title: str, f_d: float | None
+) -> Any:
     import matplotlib.pyplot as plt
 
     n = len(chosen)
-    fig, axs = plt.subplots(3, n, figsize=(4.6 * n, 7.5), sharey="row", sharex="col", squeeze=False)
+    fig, axs = plt.subplots(3, n, figsize=(4.6 * n + 1.8, 7.5), sharey="row", sharex="col",
+                            squeeze=False)  # fmt: skip
     for c, (label, log) in enumerate(chosen):
-        _column(axs[:, c], log, dim, lowpass_hz, legend=True)
+        _column(axs[:, c], log, dim, lowpass_hz)
+        if f_d is not None:
+            axs[2, c].axhline(f_d, label=f"impact force target F_d = {f_d:g} N",
+                              **bound_style("limit"))  # fmt: skip
         axs[0, c].set_title(label, fontsize=9)
         axs[2, c].set_xlabel("time [s]")
-        if any(ax.get_legend_handles_labels()[0] for ax in axs[:, c]):
-            axs[0, c].legend(fontsize=7, loc="upper right")
+    legend: dict[str, Any] = {}  # one entry per label over every panel
+    for ax in axs.flat:
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            legend.setdefault(lab, h)
+    outside_legend(axs[0, -1], handles=list(legend.values()), labels=list(legend))
     axs[0, 0].set_ylabel("speed ‖v‖ [m/s]")
     axs[1, 0].set_ylabel("acceleration ‖a‖ [m/s²]")
     axs[2, 0].set_ylabel("true force ‖F‖ [N]")
@@ -102,9 +111,11 @@ def write_contact_figures(
     trials: Sequence[Mapping[str, Any]],
     lowpass_hz: float,
     save: Callable[[Any, str], None],
+    impact_target_N: float | None = None,
 ) -> None:
     """Draw ``contact_transitions.png`` (and ``_last``) through ``save(fig, name)``; the
-    speed and acceleration are low-passed at ``lowpass_hz``.
+    speed and acceleration are low-passed at ``lowpass_hz``; ``impact_target_N``, F_d, is
+    drawn in the force row when given.
 
     Nothing is drawn unless :func:`wants_contact_figures`. Call with the Agg backend selected
     (as :func:`ccm.plots.run.write_figures` does).
@@ -112,15 +123,18 @@ def write_contact_figures(
     runs = {name: r for name, r in logs.items() if r}
     if not runs or not wants_contact_figures(runs, trials):
         return
-    sub = f"low-pass {lowpass_hz:g} Hz; shaded: transition phase; dashed: detected contacts"
+    f_d = None if impact_target_N is None else float(impact_target_N)
+    sub = (
+        f"low-pass {lowpass_hz:g} Hz; shaded: transition phase; vertical dashes: detected contacts"
+    )
     first = [(_trial_label(n, trials, 0), r[0]) for n, r in runs.items()]
     save(
-        _figure(first, dim, lowpass_hz, f"Contact transitions, first trial\n({sub})"),
+        _figure(first, dim, lowpass_hz, f"Contact transitions, first trial\n({sub})", f_d),
         "contact_transitions.png",
     )
     if any(len(r) > 1 for r in runs.values()):
         last = [(_trial_label(n, trials, -1), r[-1]) for n, r in runs.items()]
         save(
-            _figure(last, dim, lowpass_hz, f"Contact transitions, latest trial\n({sub})"),
+            _figure(last, dim, lowpass_hz, f"Contact transitions, latest trial\n({sub})", f_d),
             "contact_transitions_last.png",
         )
