@@ -18,6 +18,7 @@ from ccm.plots.modes import write_mode_figures
 from ccm.plots.mpc import write_mpc_figures
 from ccm.plots.patches import write_patch_figure
 from ccm.plots.rail import write_rail_figure
+from ccm.plots.style import bound_style, condition_style, nonzero, outside_legend
 
 
 def figure_inputs(
@@ -103,7 +104,6 @@ def _path_figure(last: Logs, save: Save) -> None:
     """Path vs target in the x-y plane; one panel per condition when there are several."""
     import matplotlib.pyplot as plt
 
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     names = list(last)
     ncol = 1 if len(names) <= 2 else min(4, len(names))
     nrow = 1 if len(names) <= 2 else -(-len(names) // ncol)
@@ -112,8 +112,6 @@ def _path_figure(last: Logs, save: Save) -> None:
     for p, group in enumerate(panels):
         ax = axs.flat[p]
         for name in group:
-            c = names.index(name)
-            col = colors[c % len(colors)]
             log = last[name]
             ax.plot(
                 log["target_pos_x"],
@@ -123,12 +121,13 @@ def _path_figure(last: Logs, save: Save) -> None:
                 alpha=0.6,
                 label="target" if name == group[0] else None,
             )
-            ax.plot(log["pos_x"], log["pos_y"], "-", color=col, lw=1.5, label=name)
+            style = condition_style(names.index(name), len(log["pos_x"]))
+            ax.plot(log["pos_x"], log["pos_y"], lw=1.5, label=name, **style)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        outside_legend(ax, "above", ncol=2)
     for ax in list(axs.flat)[len(panels) :]:
         ax.set_visible(False)
     fig.suptitle("End-effector path vs target (last trial)")
@@ -140,18 +139,18 @@ def _tracking_error_figure(last: Logs, dim: int, save: Save) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 4))
-    for name, log in last.items():
+    for c, (name, log) in enumerate(last.items()):
         err = motion_error(
             axes_columns(log, "pos", dim),
             axes_columns(log, "target_pos", dim),
             axes_columns(log, "force_dir", dim),
         )
-        ax.plot(log["t"], 1000.0 * err, label=name)
+        ax.plot(log["t"], 1000.0 * err, label=name, **condition_style(c, len(err)))
     ax.set_xlabel("time [s]")
     ax.set_ylabel("tracking error [mm]")
     ax.set_title("Tracking error in the motion-controlled subspace (last trial)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    outside_legend(ax, fontsize=8)
     save(fig, "tracking_error.png")
 
 
@@ -159,19 +158,21 @@ def _force_figure(last: Logs, dim: int, save: Save) -> None:
     """Measured force vs time: magnitude and components."""
     import matplotlib.pyplot as plt
 
-    fig, axs = plt.subplots(dim + 1, 1, figsize=(8, 2.0 * (dim + 1)), sharex=True)
-    for name, log in last.items():
+    fig, axs = plt.subplots(dim + 1, 1, figsize=(9, 2.0 * (dim + 1)), sharex=True)
+    for c, (name, log) in enumerate(last.items()):
         f = axes_columns(log, "force", dim)
-        axs[0].plot(log["t"], np.linalg.norm(f, axis=1), label=name)
+        style = condition_style(c, len(f))
+        axs[0].plot(log["t"], np.linalg.norm(f, axis=1), label=name, **style)
         for a in range(dim):
-            axs[a + 1].plot(log["t"], f[:, a], label=name)
+            axs[a + 1].plot(log["t"], f[:, a], label=name, **style)
+    _force_targets(axs[0], last)
     axs[0].set_ylabel("|F| [N]")
     for a in range(dim):
         axs[a + 1].set_ylabel(f"F_{AXES[a]} [N]")
     for ax in axs:
         ax.grid(alpha=0.3)
     axs[-1].set_xlabel("time [s]")
-    axs[0].legend(fontsize=8)
+    outside_legend(axs[0], fontsize=8)
     axs[0].set_title("Measured external force on the end-effector (F/T sensor, last trial)")
     save(fig, "force.png")
 
@@ -180,13 +181,14 @@ def _kinematics_figure(last: Logs, dim: int, lowpass_hz: Any, save: Save) -> Non
     """Speed and acceleration magnitude vs time (acceleration low-passed, ``lowpass_hz``)."""
     import matplotlib.pyplot as plt
 
-    fig, axs = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    for name, log in last.items():
+    fig, axs = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
+    for c, (name, log) in enumerate(last.items()):
         vel = axes_columns(log, "vel", dim)
         dt = float(np.median(np.diff(log["t"]))) if len(log["t"]) > 1 else 1.0
         acc, _ = derivatives(vel, dt, float(lowpass_hz))
-        axs[0].plot(log["t"], np.linalg.norm(vel, axis=1), label=f"{name}")
-        axs[1].plot(log["t"], np.linalg.norm(acc, axis=1), label=name)
+        style = condition_style(c, len(vel))
+        axs[0].plot(log["t"], np.linalg.norm(vel, axis=1), label=f"{name}", **style)
+        axs[1].plot(log["t"], np.linalg.norm(acc, axis=1), label=name, **style)
     tgt = next(iter(last.values()))
     axs[0].plot(
         tgt["t"],
@@ -201,7 +203,7 @@ def _kinematics_figure(last: Logs, dim: int, lowpass_hz: Any, save: Save) -> Non
     axs[0].set_title(f"Velocity and acceleration (low-pass {lowpass_hz} Hz, last trial)")
     for ax in axs:
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+    outside_legend(axs[0], fontsize=8)
     save(fig, "kinematics.png")
 
 
@@ -219,16 +221,17 @@ def _error_vs_trial_figure(trials: Sequence[Mapping[str, Any]], save: Save) -> N
     if not any(len(v) > 1 for v in by_cond.values()):
         return
     fig, ax = plt.subplots(figsize=(8, 4))
-    for name, pts in by_cond.items():
+    for c, (name, pts) in enumerate(by_cond.items()):
         xs, ys = zip(*pts, strict=True)
-        ax.plot(xs, 1000.0 * np.asarray(ys), "o-", ms=3, label=name)
+        style = condition_style(c) | {"markevery": 1}  # a marker on every trial
+        ax.plot(xs, 1000.0 * np.asarray(ys), label=name, **style)
     ax.set_xlabel("trial")
     ax.xaxis.get_major_locator().set_params(integer=True)  # no ticks between trials
     ax.set_ylabel("RMS tracking error [mm]")
     ax.set_yscale("log")
     ax.set_title("Tracking error over repeated trials")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
+    outside_legend(ax, fontsize=8)
     save(fig, "error_vs_trial.png")
 
 
@@ -240,7 +243,7 @@ def _force_prediction_figure(last: Logs, dim: int, save: Save) -> None:
     pred = {n: log for n, log in last.items() if "pred_force_N" in log}
     if not pred:
         return
-    fig, axs = plt.subplots(len(pred), 1, figsize=(8, 2.8 * len(pred)), sharex=True, squeeze=False)
+    fig, axs = plt.subplots(len(pred), 1, figsize=(9, 2.8 * len(pred)), sharex=True, squeeze=False)
     for ax, (name, log) in zip(axs[:, 0], pred.items(), strict=True):
         f = np.linalg.norm(axes_columns(log, "force", dim), axis=1)
         ax.plot(log["t"], f, color="tab:green", lw=1.2, label="measured |F|")
@@ -251,12 +254,27 @@ def _force_prediction_figure(last: Logs, dim: int, save: Save) -> None:
         ax.grid(alpha=0.3)
         if "truth_viscosity_Nspm" in log:
             ax2 = ax.twinx()
-            ax2.plot(log["t"], log["truth_viscosity_Nspm"], color="0.5", lw=0.8, ls=":")
+            ax2.plot(log["t"], log["truth_viscosity_Nspm"], color="0.5", lw=0.8, ls=":",
+                     label="viscosity (truth, right axis)")  # fmt: skip
             ax2.set_ylabel("viscosity [N s/m]", color="0.4")
-        ax.legend(fontsize=8, loc="upper left")
+            handles = ax.get_legend_handles_labels()[0] + ax2.get_legend_handles_labels()[0]
+            outside_legend(ax, "above", handles=handles, fontsize=8)
+        else:
+            outside_legend(ax, "above", fontsize=8)
     axs[-1, 0].set_xlabel("time [s]")
     fig.suptitle("Force predicted one model step (horizon_s) earlier (last trial)")
     save(fig, "force_prediction.png")
+
+
+def _force_targets(ax: Any, last: Logs) -> None:
+    """The hybrid force loop's target (``force_target_N``, seed A Eq. 1 u_fc) of each
+    condition that sets one, dashed grey where it is not 0; labelled once."""
+    label = "force target u_fc (task)"
+    for log in last.values():
+        target = log.get("force_target_N")
+        if target is not None and np.any(np.asarray(target) != 0.0):
+            ax.step(log["t"], nonzero(target), where="post", label=label, **bound_style("target"))
+            label = None
 
 
 def _chance_bounds(components: Mapping[str, Any]) -> dict[str, float]:

@@ -26,21 +26,27 @@ N_COLORS = 10
 MARK_STEP = 0.12
 
 
-def condition_style(index: int) -> dict[str, Any]:
+def condition_style(index: int, n_points: int | None = None) -> dict[str, Any]:
     """Keyword arguments of ``ax.plot`` for the ``index``-th condition of a figure.
 
     Args:
         index: the condition's position among the figure's conditions (0-based).
+        n_points: the samples of the line, for markers evenly spaced in samples (time); None:
+            spaced along the drawn line (for short lines, e.g. one point per trial).
 
     Returns:
         ``color``, ``ls``, ``marker``, ``markevery``, ``ms`` and ``mfc`` (hollow markers).
     """
-    offset = (index * 0.37 * MARK_STEP) % MARK_STEP
+    if n_points is None:
+        every: Any = ((index * 0.37 * MARK_STEP) % MARK_STEP, MARK_STEP)
+    else:
+        step = max(1, int(n_points * MARK_STEP))
+        every = (int(index * 0.37 * step) % step, step)
     return {
         "color": f"C{index % N_COLORS}",
         "ls": LINESTYLES[index % len(LINESTYLES)],
         "marker": MARKERS[index % len(MARKERS)],
-        "markevery": (offset, MARK_STEP),
+        "markevery": every,
         "ms": 4.0,
         "mfc": "none",
     }
