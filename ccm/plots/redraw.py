@@ -2,12 +2,12 @@
 
 A trial-loop run writes, besides its numbers, ``plot_inputs.json``
 (:func:`ccm.plots.run.figure_inputs`: the task's dimension and contacts, the chance bounds,
-the low-pass and the ``metrics`` config) and the time series of each condition's first and
-last trial (``experiment.timeseries: first_last``, the default). That is all the figures
-read, so they can be drawn after the run, in other processes: the run itself draws them
-after ``summary.json`` is written, and ``ccm paper`` draws only those of the runs its report
-shows (:func:`ccm.reporting.paper.main`). A directory that holds no ``summary.json`` is taken
-as a sweep: its run directories are drawn, ``--jobs`` at a time.
+the f^r targets, the low-pass and the ``metrics`` config) and the time series of each
+condition's first and last trial (``experiment.timeseries: first_last``, the default). That
+is all the figures read, so they can be drawn after the run, in other processes: the run
+itself draws them after ``summary.json`` is written, and ``ccm paper`` draws only those of
+the runs its report shows (:func:`ccm.reporting.paper.main`). A directory that holds no
+``summary.json`` is taken as a sweep: its run directories are drawn, ``--jobs`` at a time.
 
 The figures drawn from the files equal the run's own up to the files' precision
 (``experiment.timeseries_bits``: a relative error of 2e-6 at the default 18 bits).

@@ -26,14 +26,16 @@ def figure_inputs(
 ) -> dict[str, Any]:
     """What the figures need of a run besides its time series and trial records, as JSON-ready
     data (the run writes it as ``plot_inputs.json``; ``ccm plots`` reads it back): the task's
-    dimension and contacts, each condition's chance-constraint bound f̄, the low-pass of the
-    derived kinematics and the ``metrics`` config. ``components``: condition -> an object
-    with ``task`` (``dim``, ``contacts``) and optionally ``controller``."""
+    dimension and contacts, each condition's chance-constraint bound f̄ and f^r-target force,
+    the low-pass of the derived kinematics and the ``metrics`` config. ``components``:
+    condition -> an object with ``task`` (``dim``, ``contacts``) and optionally
+    ``controller``."""
     task = next(iter(components.values())).task
     return {
         "dim": int(task.dim),
         "contacts": to_plain(list(getattr(task, "contacts", ()) or ())),
         "chance_bounds": _chance_bounds(components),
+        "force_targets": _force_targets_of(components),
         "lowpass_hz": float(settings["lowpass_hz"]),
         "metrics": to_plain(dict(metrics)),
     }
@@ -90,7 +92,8 @@ def write_figures(
     if wants_contact_figures(logs, trials):  # impact-less transitions (seed A Figs 19-20)
         write_patch_figure(logs, inputs.get("contacts") or (), dim, lowpass_hz, save)
     # seed B GP-MPC: contact force, impedance, belief (seed B Figs 6, 8, 11)
-    write_mpc_figures(last, dim, save, dict(inputs.get("chance_bounds") or {}))
+    bounds, targets = (dict(inputs.get(k) or {}) for k in ("chance_bounds", "force_targets"))
+    write_mpc_figures(last, dim, save, bounds, targets)
     # seed B rail task: damping against the distance to the rail (seed B Fig. 8)
     write_rail_figure(fig_dir.parent, trials, dim, metrics_cfg, save)
     return written
@@ -285,4 +288,17 @@ def _chance_bounds(components: Mapping[str, Any]) -> dict[str, float]:
         chance = (getattr(ctrl, "mpc_cfg", None) or {}).get("chance") or {}
         if "f_max" in chance:
             out[name] = float(chance["f_max"])
+    return out
+
+
+def _force_targets_of(components: Mapping[str, Any]) -> dict[str, float]:
+    """Condition -> ‖f_target‖ [N] of its GP-MPC f^r-target cost (seed B §6.2), where the cost
+    is weighted and the target is not 0."""
+    out = {}
+    for name, comp in components.items():
+        cfg = getattr(getattr(comp, "controller", None), "mpc_cfg", None) or {}
+        weight = float((cfg.get("weights") or {}).get("f_ref_target", 0.0) or 0.0)
+        norm = float(np.linalg.norm(np.atleast_1d(np.asarray(cfg.get("f_ref_target", 0.0), float))))
+        if weight > 0.0 and norm > 0.0:
+            out[name] = norm
     return out
