@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ccm.metrics.adaptation import environment_changes
+from ccm.plots.style import condition_style, outside_legend
 
 #: per-trial series of the bottom panel: metric -> (label, line style)
 SERIES = {
@@ -59,7 +60,8 @@ def write_stiffness_figure(
     for c, (name, log) in enumerate(last.items()):
         if "stiffness_Npm" not in log:
             continue
-        ax.plot(log["t"], log["stiffness_Npm"], color=f"C{c}", label=name)
+        ax.plot(log["t"], log["stiffness_Npm"], label=name,
+                **condition_style(c, len(log["stiffness_Npm"])))  # fmt: skip
         for i in environment_changes(log, params):
             ax.axvline(log["t"][i], color="0.5", ls=":", lw=1,
                        label=None if marked else "environment change")  # fmt: skip
@@ -68,7 +70,7 @@ def write_stiffness_figure(
     ax.set_ylabel("stiffness K_p [N/m]")
     ax.set_title("Controller stiffness (last trial)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    outside_legend(ax, fontsize=8)
     if series:
         ax = axs[1, 0]
         names = list(dict.fromkeys(n for n, _ in series))
@@ -83,5 +85,5 @@ def write_stiffness_figure(
         ax.set_ylabel("mean K_p [N/m]")
         ax.set_title("Mean stiffness per trial")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        outside_legend(ax)
     save(fig, "stiffness.png")

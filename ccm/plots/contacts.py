@@ -27,7 +27,7 @@ import numpy as np
 from ccm.core.filters import derivatives
 from ccm.core.records import axes_columns
 from ccm.plots.modes import shade_runs
-from ccm.plots.style import bound_style, nonzero, outside_legend
+from ccm.plots.style import bound_style, merged_legend, nonzero
 
 Log = Mapping[str, np.ndarray]
 
@@ -93,11 +93,7 @@ def _figure(
                               **bound_style("limit"))  # fmt: skip
         axs[0, c].set_title(label, fontsize=9)
         axs[2, c].set_xlabel("time [s]")
-    legend: dict[str, Any] = {}  # one entry per label over every panel
-    for ax in axs.flat:
-        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
-            legend.setdefault(lab, h)
-    outside_legend(axs[0, -1], handles=list(legend.values()), labels=list(legend))
+    merged_legend(axs[0, -1], axs.flat)  # one entry per label over every panel
     axs[0, 0].set_ylabel("speed ‖v‖ [m/s]")
     axs[1, 0].set_ylabel("acceleration ‖a‖ [m/s²]")
     axs[2, 0].set_ylabel("true force ‖F‖ [N]")

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ccm.core.records import save_figure
+from ccm.plots.style import condition_style, outside_legend
 
 
 def write_gp_contact_figure(
@@ -36,7 +37,7 @@ def write_gp_contact_figure(
                 ax.set_axis_off()
                 continue
             for i, (c, label) in enumerate(present):
-                _draw(ax, c, label, f"C{i}")
+                _draw(ax, c, label, i)
             xs = np.concatenate([c["x"] for c, _ in present])
             lo, hi = float(xs.min()), float(xs.max())
             if row == 1:  # the stiff slope is a few tenths of a mm wide
@@ -50,7 +51,8 @@ def write_gp_contact_figure(
             ax.set_xlabel("EE position x [m]")
             ax.set_ylabel("measured force f_x [N]")
             ax.grid(alpha=0.3)
-            ax.legend(fontsize=8, loc="lower left")
+            if row == 0:  # the zoom below has the same cases in the same styles
+                outside_legend(ax, "above", fontsize=8, ncol=2)
     fig.suptitle(
         "Hinge-mean GP force models (seed B Fig. 5): data (dots), GP mean (line) ± 2σ "
         "predictive (band), true contact position (dashed)", fontsize=11,
@@ -58,9 +60,11 @@ def write_gp_contact_figure(
     save_figure(fig, path)
 
 
-def _draw(ax: Any, c: Mapping[str, Any], label: str, color: str) -> None:
+def _draw(ax: Any, c: Mapping[str, Any], label: str, index: int) -> None:
+    style = condition_style(index, len(c["grid"]))  # cases whose means coincide stay visible
+    color = style["color"]
     ax.plot(c["x"], c["f"], ".", ms=2.5, color=color, alpha=0.35)
-    ax.plot(c["grid"], c["mu"], "-", color=color, lw=1.5, label=label)
+    ax.plot(c["grid"], c["mu"], lw=1.5, label=label, **style)
     lo, hi = c["mu"] - 2 * c["std"], c["mu"] + 2 * c["std"]
     ax.fill_between(c["grid"], lo, hi, color=color, alpha=0.18, lw=0)
     for x in sorted(set(c["contacts"])):

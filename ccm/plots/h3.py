@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ccm.core.records import save_figure
+from ccm.plots.style import outside_legend
 
 TITLES = {
     "joint_single": "joint space, trained at wall friction 0.6 (Fig. 11a)",
@@ -75,5 +76,5 @@ def write_h3_figures(fig_dir: Path, curves: Mapping[str, Mapping[str, np.ndarray
         fig, axs = plt.subplots(len(names), 1, figsize=(8, 2.8 * len(names)), squeeze=False)
         for ax, n in zip(axs[:, 0], names, strict=True):
             _panel(ax, n, curves[n], ylabel)
-        axs[0, 0].legend(fontsize=7, loc="best")
+        outside_legend(axs[0, 0])
         save_figure(fig, fig_dir / fname)

@@ -21,6 +21,7 @@ import numpy as np
 from ccm.core.records import axes_columns
 from ccm.metrics.modes import NEW, decisions, in_contact_steps, mode_ids, true_transition_steps
 from ccm.metrics.trial import motion_error
+from ccm.plots.style import outside_legend
 
 Log = Mapping[str, np.ndarray]
 
@@ -77,7 +78,8 @@ def _modes_panel(ax: Any, label: str, log: Log) -> None:
     top = max(int(mode.max(initial=0)), 0)
     truth = in_contact_steps(log)
     if truth is not None:
-        ax.step(t, truth[0], where="post", color="0.45", ls="--", lw=1.2, label="true surface")
+        ax.step(t, truth[0], where="post", color="0.2", ls="--", lw=1.2, zorder=3,
+                label="true surface")  # fmt: skip
         top = max(top, int(truth[0].max(initial=0)))
     ax.step(t, mode, where="post", color="tab:blue", lw=1.6, label="detected mode")
     _mark(ax, log, legend=True)
@@ -97,7 +99,7 @@ def _modes_panel(ax: Any, label: str, log: Log) -> None:
     ax.set_ylabel("id (−1: none)")
     ax.set_title(label, fontsize=9)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left", ncol=4)
+    outside_legend(ax)
 
 
 def _stiffness_error_panels(ax_k: Any, ax_e: Any, label: str, log: Log, dim: int) -> None:
@@ -119,7 +121,7 @@ def _stiffness_error_panels(ax_k: Any, ax_e: Any, label: str, log: Log, dim: int
     ax_k.set_title(label, fontsize=9)
     for ax in (ax_k, ax_e):
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="upper left", ncol=3)
+        outside_legend(ax)
 
 
 def write_mode_figures(

@@ -22,6 +22,7 @@ import numpy as np
 
 from ccm.core.filters import derivatives
 from ccm.core.records import axes_columns
+from ccm.plots.style import merged_legend
 
 Log = Mapping[str, np.ndarray]
 HALF_WINDOW_S = 0.5  # s either side of the crossing (seed A Figs 19-20 show ~1 s sections)
@@ -58,7 +59,7 @@ def write_patch_figure(
             axs[r, j].set_ylabel(label, fontsize=8)
             axs[r, j].grid(alpha=0.3)
         axs[n - 1, j].set_xlabel("time from the tool point's crossing [s]")
-    axs[0, 0].legend(fontsize=7, loc="upper left")
+    merged_legend(axs[0, -1], axs.flat)
     fig.suptitle(
         f"Impact-less transitions (low-pass {lowpass_hz:g} Hz; thick: transition phase active)\n"
         "Algorithm 1: x trigger fires, o new mode decided; F_h: horizontal part of the force",

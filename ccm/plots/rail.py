@@ -17,6 +17,7 @@ from typing import Any
 from ccm.core.records import AXES
 from ccm.core.timeseries import read_timeseries, trial_path
 from ccm.metrics.mpc import rail_distance
+from ccm.plots.style import merged_legend
 
 
 def write_rail_figure(
@@ -58,5 +59,5 @@ def write_rail_figure(
             axs[i, j].invert_xaxis()  # the approach runs left to right, the rail at 0
             axs[i, j].grid(alpha=0.3)
         axs[-1, j].set_xlabel("distance of the tool to the rail [m]")
-        axs[0, j].legend(fontsize=6)
+    merged_legend(axs[0, -1], axs.flat)
     save(fig, "mpc_rail_damping.png")

@@ -5,13 +5,14 @@
   conditions whose lines coincide both stay visible (the dashes and the offset markers of the
   upper one leave the lower one showing).
 * :func:`bound_style`: the dashed black-and-grey lines of force bounds and targets.
-* :func:`outside_legend`: a legend beside (right of) or above an axes, never over its data.
+* :func:`outside_legend`: a legend beside (right of) or above an axes, never over its data;
+  :func:`merged_legend`: one such legend for the labelled artists of several axes.
   The layout of :func:`ccm.core.records.save_figure` (``tight_layout``) makes room for it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -111,6 +112,25 @@ def outside_legend(
         return leg
     return ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                      ncol=ncol or 1, fontsize=fontsize, borderaxespad=0.0)  # fmt: skip
+
+
+def merged_legend(anchor: Any, axes: Iterable[Any], where: str = "right") -> Any:
+    """One :func:`outside_legend` at ``anchor`` listing each label of ``axes`` once (the
+    first artist that carries it), for panels that share their legend entries.
+
+    Args:
+        anchor: the axes the legend is placed beside or above.
+        axes: the axes whose labelled artists are listed.
+        where: as :func:`outside_legend`.
+
+    Returns:
+        The legend, or None if nothing is labelled.
+    """
+    entries: dict[str, Any] = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    return outside_legend(anchor, where, list(entries.values()), list(entries))
 
 
 def _pad(legend: Any, ncol: int) -> float:
