@@ -122,6 +122,7 @@ def _path_figure(last: Logs, save: Save) -> None:
                 "k--",
                 lw=1,
                 alpha=0.6,
+                zorder=3,  # above the path, which hides it wherever tracking is good
                 label="target" if name == group[0] else None,
             )
             style = condition_style(names.index(name), len(log["pos_x"]))
@@ -198,6 +199,7 @@ def _kinematics_figure(last: Logs, dim: int, lowpass_hz: Any, save: Save) -> Non
         np.linalg.norm(axes_columns(tgt, "target_vel", dim), axis=1),
         "k--",
         lw=1,
+        zorder=3,  # above the conditions' speeds, which hide it wherever tracking is good
         label="target",
     )
     axs[0].set_ylabel("speed [m/s]")
