@@ -14,8 +14,9 @@ from __future__ import annotations
 
 from numba import njit
 
+from ccm.learn.mixtures._chol_kernels import _JIT
 from ccm.learn.mixtures._gmr_kernels import gmr_rows
-from ccm.learn.mixtures._igmm_kernels import _JIT, fit_rows
+from ccm.learn.mixtures._igmm_kernels import fit_rows
 
 
 @njit(**_JIT)

@@ -1,6 +1,6 @@
 """Numba kernels behind :class:`ccm.learn.mixtures.gmr.GMRConditional`: Gaussian mixture
 regression (Sung 2004; seed A Eq. 6) over the mixture buffers of
-:mod:`ccm.learn.mixtures._igmm_kernels`, with a per-split cache of the conditional factors
+:mod:`ccm.learn.mixtures._igmm_layout`, with a per-split cache of the conditional factors
 that is refreshed only for components whose change stamp moved.
 """
 
@@ -11,15 +11,8 @@ import math
 import numpy as np
 from numba import njit
 
-from ccm.learn.mixtures._igmm_kernels import (
-    _JIT,
-    C_SP,
-    C_STAMP,
-    I_K,
-    I_VERSION,
-    chol_into,
-    maha_sq,
-)
+from ccm.learn.mixtures._chol_kernels import _JIT, chol_into, maha_sq
+from ccm.learn.mixtures._igmm_layout import C_SP, C_STAMP, I_K, I_VERSION
 
 
 def new_gmr_cache(kmax: int, di: int, do: int) -> np.ndarray:

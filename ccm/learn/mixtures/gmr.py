@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ccm.learn.mixtures import _gmr_kernels as _g
-from ccm.learn.mixtures import _igmm_kernels as _k
+from ccm.learn.mixtures import _igmm_layout as _lay
 
 __all__ = ["GMRConditional", "gmr_predict"]
 
@@ -249,13 +249,13 @@ class GMRConditional:
     ) -> None:
         w, mu, cov = check_mixture(weights, means, covariances)
         n = mu.shape[0]
-        comp = np.zeros((_k.N_COMP, n))
-        comp[_k.C_SP] = w
-        comp[_k.C_AGE] = 1.0
-        comp[_k.C_STAMP] = np.arange(1, n + 1)
-        istate = np.zeros(_k.N_ISTATE, dtype=np.int64)
-        istate[_k.I_K] = n
-        istate[_k.I_STAMP] = n
+        comp = np.zeros((_lay.N_COMP, n))
+        comp[_lay.C_SP] = w
+        comp[_lay.C_AGE] = 1.0
+        comp[_lay.C_STAMP] = np.arange(1, n + 1)
+        istate = np.zeros(_lay.N_ISTATE, dtype=np.int64)
+        istate[_lay.I_K] = n
+        istate[_lay.I_STAMP] = n
         self._setup(in_idx, out_idx, mu, cov, comp, istate)
         self.predict(mu[0, self._in_idx])  # factorise now: fail early on a singular block
 

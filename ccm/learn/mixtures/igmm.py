@@ -66,6 +66,7 @@ from ccm.core.errors import (
     check_range,
 )
 from ccm.learn.mixtures import _igmm_kernels as _k
+from ccm.learn.mixtures import _igmm_layout as _lay
 from ccm.learn.mixtures import igmm_io
 from ccm.learn.mixtures.gmr import GMRConditional, as_rows, check_split
 
@@ -73,11 +74,11 @@ __all__ = ["IGMM"]
 
 _MAX_CACHED_SPLITS = 16
 _COUNTERS = {
-    "created": _k.I_CREATED,
-    "merged": _k.I_MERGED,
-    "overflow_pruned": _k.I_OVERFLOW_PRUNED,
-    "support_pruned": _k.I_SUPPORT_PRUNED,
-    "jitter": _k.I_JITTER,
+    "created": _lay.I_CREATED,
+    "merged": _lay.I_MERGED,
+    "overflow_pruned": _lay.I_OVERFLOW_PRUNED,
+    "support_pruned": _lay.I_SUPPORT_PRUNED,
+    "jitter": _lay.I_JITTER,
 }
 
 
@@ -179,26 +180,26 @@ class IGMM:
         self._allocate()
 
     def _allocate(self) -> None:
-        """The kernels' settings vector and the mixture buffers (:mod:`._igmm_kernels`)."""
+        """The kernels' settings vector and the mixture buffers (:mod:`._igmm_layout`)."""
         d, kmax, floor = self.n_features, self.max_components, self.cov_floor
         sp_min, v_min, overflow, sig = self.sp_min, self.v_min, self.overflow, self.sigma_init
         self._threshold = chi2_quantile(self.novelty_chi2_quantile, d)
-        self._params = np.zeros(_k.N_PARAMS)
-        self._params[_k.P_THRESHOLD] = self._threshold
-        self._params[_k.P_FLOOR] = floor
-        self._params[_k.P_SP_MIN] = sp_min
-        self._params[_k.P_V_MIN] = float(v_min)
-        self._params[_k.P_OVERFLOW] = (
-            _k.OVERFLOW_MERGE if overflow == "merge" else _k.OVERFLOW_PRUNE
+        self._params = np.zeros(_lay.N_PARAMS)
+        self._params[_lay.P_THRESHOLD] = self._threshold
+        self._params[_lay.P_FLOOR] = floor
+        self._params[_lay.P_SP_MIN] = sp_min
+        self._params[_lay.P_V_MIN] = float(v_min)
+        self._params[_lay.P_OVERFLOW] = (
+            _lay.OVERFLOW_MERGE if overflow == "merge" else _lay.OVERFLOW_PRUNE
         )
         self._sigma2 = np.ascontiguousarray(sig**2)
         self._means = np.zeros((kmax, d))
         self._covs = np.zeros((kmax, d, d))
         self._chols = np.zeros((kmax, d, d))
-        self._comp = np.zeros((_k.N_COMP, kmax))
-        self._sp = self._comp[_k.C_SP]  # views
-        self._age = self._comp[_k.C_AGE]
-        self._istate = np.zeros(_k.N_ISTATE, dtype=np.int64)
+        self._comp = np.zeros((_lay.N_COMP, kmax))
+        self._sp = self._comp[_lay.C_SP]  # views
+        self._age = self._comp[_lay.C_AGE]
+        self._istate = np.zeros(_lay.N_ISTATE, dtype=np.int64)
         self._work = np.zeros(2 * d + kmax + 2 * d * d)
         self._splits: dict[tuple[tuple[int, ...], tuple[int, ...]], GMRConditional] = {}
 
@@ -227,12 +228,12 @@ class IGMM:
     @property
     def n_components_(self) -> int:
         """Number of live components K (0 before the first point)."""
-        return int(self._istate[_k.I_K])
+        return int(self._istate[_lay.I_K])
 
     @property
     def n_seen_(self) -> int:
         """Number of points processed since construction or the last :meth:`reset`."""
-        return int(self._istate[_k.I_SEEN])
+        return int(self._istate[_lay.I_SEEN])
 
     @property
     def weights_(self) -> np.ndarray:
@@ -278,7 +279,7 @@ class IGMM:
     @property
     def version_(self) -> int:
         """Increases on every model change (GMR caches compare against it)."""
-        return int(self._istate[_k.I_VERSION])
+        return int(self._istate[_lay.I_VERSION])
 
     def get_params(self) -> dict[str, Any]:
         """Constructor arguments (JSON-safe)."""
@@ -318,11 +319,11 @@ class IGMM:
 
     def reset(self) -> IGMM:
         """Forget all components (keeps the settings); cached GMR splits are invalidated."""
-        version = int(self._istate[_k.I_VERSION])
-        stamp = int(self._istate[_k.I_STAMP])  # stamps stay unique over the model's life
+        version = int(self._istate[_lay.I_VERSION])
+        stamp = int(self._istate[_lay.I_STAMP])  # stamps stay unique over the model's life
         self._istate[:] = 0
-        self._istate[_k.I_VERSION] = version + 1
-        self._istate[_k.I_STAMP] = stamp
+        self._istate[_lay.I_VERSION] = version + 1
+        self._istate[_lay.I_STAMP] = stamp
         for arr in (self._means, self._covs, self._chols, self._comp):
             arr[...] = 0.0
         return self
@@ -506,11 +507,11 @@ class IGMM:
         bad = _k.refactor_all(n, self._covs, self._chols, self._comp, self._istate)
         if bad >= 0:
             raise ValueError(f"IGMM data: covariance {bad} is not positive definite")
-        self._istate[_k.I_K] = n
-        self._istate[_k.I_SEEN] = n_seen
+        self._istate[_lay.I_K] = n
+        self._istate[_lay.I_SEEN] = n_seen
         for name, i in _COUNTERS.items():
             self._istate[i] = int(stats.get(name, 0))
-        self._istate[_k.I_VERSION] = 1
+        self._istate[_lay.I_VERSION] = 1
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the model to ``path`` as an uncompressed NPZ (no pickled objects), atomically;
