@@ -35,8 +35,10 @@ mixture models"):
 5. Priors p(j) = sp_j / sum_q sp_q.
 
 All state lives in arrays preallocated for ``max_components``: per-step cost and memory are
-flat over arbitrarily long streams. The numeric work is done by numba kernels
-(:mod:`ccm.learn.mixtures._igmm_kernels`).
+flat over arbitrarily long streams (:mod:`ccm.learn.mixtures.igmm_buffers` reads the fitted
+attributes from them). The numeric work is done by numba kernels
+(:mod:`ccm.learn.mixtures._igmm_kernels`); the settings are checked with
+:mod:`ccm.learn.mixtures.igmm_settings`.
 
 Behaviour worth knowing on long streams: a component's learning rate w_j ~ 1 / sp_j decays
 like 1/n (the model is a running average, not a tracker), and the prior p(j) grows with sp_j.
@@ -49,7 +51,6 @@ over one task); a forgetting factor would be an extension.
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -69,27 +70,15 @@ from ccm.learn.mixtures import _igmm_kernels as _k
 from ccm.learn.mixtures import _igmm_layout as _lay
 from ccm.learn.mixtures import igmm_io
 from ccm.learn.mixtures.gmr import GMRConditional, as_rows, check_split
+from ccm.learn.mixtures.igmm_buffers import MixtureBuffers
+from ccm.learn.mixtures.igmm_settings import check_sigma, chi2_quantile
 
 __all__ = ["IGMM"]
 
 _MAX_CACHED_SPLITS = 16
-_COUNTERS = {
-    "created": _lay.I_CREATED,
-    "merged": _lay.I_MERGED,
-    "overflow_pruned": _lay.I_OVERFLOW_PRUNED,
-    "support_pruned": _lay.I_SUPPORT_PRUNED,
-    "jitter": _lay.I_JITTER,
-}
 
 
-def chi2_quantile(q: float, dof: int) -> float:
-    """Quantile ``q`` of the chi-square distribution with ``dof`` degrees of freedom."""
-    from scipy.special import gammaincinv  # lazy: keep `import ccm.learn.mixtures.igmm` light
-
-    return float(2.0 * gammaincinv(0.5 * dof, q))
-
-
-class IGMM:
+class IGMM(MixtureBuffers):
     """Incremental Gaussian mixture model (Engel & Heinen 2010) with GMR (seed A Eq. 5, 6).
 
     Example (seed A's AVIC forward model, d = 6: four inputs S_{t-1}, two outputs D_t)::
@@ -151,7 +140,7 @@ class IGMM:
             raise ConfigError(
                 f"{key}.novelty_chi2_quantile", f"must be in (0, 1) exclusive, got {q!r}"
             )
-        sig = self._check_sigma(f"{key}.sigma_init", sigma_init, d)
+        sig = check_sigma(f"{key}.sigma_init", sigma_init, d)
         v_min = check_int_positive(f"{key}.v_min", v_min)
         sp_min = check_nonneg(f"{key}.sp_min", sp_min)
         kmax = check_int_positive(f"{key}.max_components", max_components)
@@ -203,83 +192,9 @@ class IGMM:
         self._work = np.zeros(2 * d + kmax + 2 * d * d)
         self._splits: dict[tuple[tuple[int, ...], tuple[int, ...]], GMRConditional] = {}
 
-    @staticmethod
-    def _check_sigma(name: str, value: Any, d: int) -> np.ndarray:
-        if isinstance(value, bool):
-            raise ConfigError(name, f"must be a positive number or {d} of them, got {value!r}")
-        try:
-            arr = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ConfigError(
-                name, f"must be a positive number or {d} of them, got {value!r}"
-            ) from None
-        if arr.ndim == 0:
-            arr = np.full(d, float(arr))
-        if arr.shape != (d,):
-            raise ConfigError(name, f"must be a positive number or {d} of them, got {value!r}")
-        if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
-            raise ConfigError(name, f"must be finite and > 0, got {value!r}")
-        return arr
-
     # -----------------------------------------------------------------------------------------
-    # fitted attributes
+    # settings and size (the fitted attributes: ccm.learn.mixtures.igmm_buffers)
     # -----------------------------------------------------------------------------------------
-
-    @property
-    def n_components_(self) -> int:
-        """Number of live components K (0 before the first point)."""
-        return int(self._istate[_lay.I_K])
-
-    @property
-    def n_seen_(self) -> int:
-        """Number of points processed since construction or the last :meth:`reset`."""
-        return int(self._istate[_lay.I_SEEN])
-
-    @property
-    def weights_(self) -> np.ndarray:
-        """Priors p(j) = sp_j / sum_q sp_q, shape (K,) (a copy)."""
-        sp = self._sp[: self.n_components_]
-        return sp / sp.sum() if sp.size else sp.copy()
-
-    @property
-    def means_(self) -> np.ndarray:
-        """Component means, shape (K, d) (a copy)."""
-        return self._means[: self.n_components_].copy()
-
-    @property
-    def covariances_(self) -> np.ndarray:
-        """Component covariances, shape (K, d, d) (a copy)."""
-        return self._covs[: self.n_components_].copy()
-
-    @property
-    def support_(self) -> np.ndarray:
-        """Accumulated posterior support sp_j, shape (K,) (a copy)."""
-        return self._sp[: self.n_components_].copy()
-
-    @property
-    def ages_(self) -> np.ndarray:
-        """Updates since creation v_j, shape (K,) (int64 copy)."""
-        return self._age[: self.n_components_].astype(np.int64)
-
-    @property
-    def novelty_threshold_(self) -> float:
-        """Squared Mahalanobis distance at or beyond which a point is novel."""
-        return self._threshold
-
-    @property
-    def novelty_tau_(self) -> float:
-        """Engel & Heinen's tau_nov equivalent to the chi-square threshold."""
-        return math.exp(-0.5 * self._threshold)
-
-    @property
-    def stats_(self) -> dict[str, int]:
-        """Event counters: components created, merged, pruned; factorisations jittered."""
-        return {name: int(self._istate[i]) for name, i in _COUNTERS.items()}
-
-    @property
-    def version_(self) -> int:
-        """Increases on every model change (GMR caches compare against it)."""
-        return int(self._istate[_lay.I_VERSION])
 
     def get_params(self) -> dict[str, Any]:
         """Constructor arguments (JSON-safe)."""
@@ -317,17 +232,6 @@ class IGMM:
     # learning
     # -----------------------------------------------------------------------------------------
 
-    def reset(self) -> IGMM:
-        """Forget all components (keeps the settings); cached GMR splits are invalidated."""
-        version = int(self._istate[_lay.I_VERSION])
-        stamp = int(self._istate[_lay.I_STAMP])  # stamps stay unique over the model's life
-        self._istate[:] = 0
-        self._istate[_lay.I_VERSION] = version + 1
-        self._istate[_lay.I_STAMP] = stamp
-        for arr in (self._means, self._covs, self._chols, self._comp):
-            arr[...] = 0.0
-        return self
-
     def partial_fit(self, X: Any) -> IGMM:
         """Learn from one point (d,) or a batch (N, d), processed in order (Engel & Heinen).
 
@@ -355,14 +259,6 @@ class IGMM:
         if status:
             raise ValueError(f"X: row {-status - 1} is not finite; the model was not changed")
         return self
-
-    def kernel_buffers(self) -> tuple[np.ndarray, ...]:
-        """The mixture buffers :func:`ccm.learn.mixtures._igmm_kernels.fit_rows` takes after the
-        rows (fixed for the model's life), for a control loop that calls the kernels itself."""
-        return (
-            self._means, self._covs, self._chols, self._comp, self._istate, self._params,
-            self._sigma2, self._work,
-        )  # fmt: skip
 
     def fit(self, X: Any) -> IGMM:
         """:meth:`reset`, then :meth:`partial_fit` on the rows of ``X`` in order."""
@@ -486,32 +382,6 @@ class IGMM:
                 that are not positive definite (ConfigError for bad settings).
         """
         return igmm_io.from_state(cls, data, key)
-
-    def restore(
-        self,
-        means: np.ndarray,
-        covs: np.ndarray,
-        support: np.ndarray,
-        ages: np.ndarray,
-        *,
-        n_seen: int,
-        stats: Mapping[str, Any],
-    ) -> None:
-        """Set the components (checked arrays: :mod:`ccm.learn.mixtures.igmm_io`) and the
-        counters of a fresh model; ValueError if a covariance is not positive definite."""
-        n = means.shape[0]
-        self._means[:n] = means
-        self._covs[:n] = covs
-        self._sp[:n] = support
-        self._age[:n] = np.floor(ages)
-        bad = _k.refactor_all(n, self._covs, self._chols, self._comp, self._istate)
-        if bad >= 0:
-            raise ValueError(f"IGMM data: covariance {bad} is not positive definite")
-        self._istate[_lay.I_K] = n
-        self._istate[_lay.I_SEEN] = n_seen
-        for name, i in _COUNTERS.items():
-            self._istate[i] = int(stats.get(name, 0))
-        self._istate[_lay.I_VERSION] = 1
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the model to ``path`` as an uncompressed NPZ (no pickled objects), atomically;
