@@ -31,7 +31,8 @@ Gaussian
   force against the motion rises, with no detectable impact: position only); impact-less
   transitions from Algorithm 1's mode changes. Collisions are associated in plan order, the
   rest with the contact whose window is open (or a new one); a collision's commanded approach
-  speed and measured impact force update that contact's approach model (Eq. 9).
+  speed and measured impact force update that contact's approach model (Eq. 9). Recording
+  an event in the map is :mod:`ccm.control.adaptive.contact_records`.
 
 The controller sees only the Observation, the planned pattern and the task's nominal
 contact list; never the scene. Results and how they compare with seed A: ``experiments/h4.md``.
@@ -49,6 +50,7 @@ import numpy as np
 from ccm.control.adaptive.anticipation_settings import AnticipationSettings
 from ccm.control.adaptive.avic import AVIC
 from ccm.control.adaptive.contact_events import ContactEvents, TransitionWindow
+from ccm.control.adaptive.contact_records import ContactRecords
 from ccm.control.adaptive.replan import plan_passes, rate_changes, windows_ahead
 from ccm.control.adaptive.transition import KINDS, transition_force
 from ccm.control.base import STATE_ERRORS, Controller, check_state_keys, state_error
@@ -59,7 +61,7 @@ from ccm.learn.contact.contacts import ContactMap
 from ccm.tasks.retiming import RetimedPattern, TimeWarp
 
 
-class AnticipatoryAVIC(ContactEvents, Controller):
+class AnticipatoryAVIC(ContactRecords, ContactEvents, Controller):
     """AVIC + Algorithm 1 + contact anticipation and transition handling (seed A §3.3–3.5).
 
     Args:
@@ -243,45 +245,6 @@ class AnticipatoryAVIC(ContactEvents, Controller):
             self._ant["pattern_rate"] = float(self._retimed.warp.rate(obs.t))
         return cmd
 
-    def _contact_made(self, obs: Observation, target: TargetSample, event: Any) -> float:
-        """Record a collision (1) or a quasi-static contact (2) in the map; 0 for none."""
-        hit = 0.0
-        if event is not None and not self._approaching(event):
-            event = None
-        if event is not None and self.contact_map is not None:
-            z = self._measured(event.position)
-            v_cmd = float(np.linalg.norm(self._commanded_velocity(event.onset_time)))
-            measured = {"v_used": v_cmd, "f_measured": event.impact_force_N}
-            if v_cmd < self.detector.min_approach_speed or not self._anticipated(event.onset_time):
-                measured = {}  # not an approach under Eq. 8's controller: no Eq. 9 measurement
-            ev = self.contact_map.observe(
-                z, "collision", **measured,
-                expected=self._in_sequence(z), expected_gate=self.cfg.association_gate,
-            )  # fmt: skip
-            t_on = event.onset_time
-            at = (self._history(self._target_hist, t_on), self._commanded_velocity(t_on))
-            self._record(ev.index, z, at)
-            hit = 1.0
-            self._release(ev.index, obs.t)
-        elif self.contact_map is not None and self._pressed(obs, target):
-            # contact made without a detectable impact (Eq. 9 gets the stall's peak force:
-            # below F_d, so the next approach is faster); weaker evidence than a collision,
-            # so it must lie within the map's gate of the next contact
-            gate = self.contact_map.gate
-            z = self._measured(obs.position)
-            expected = self._in_sequence(z, gate)
-            if expected is None:
-                self._stall_used = True  # e.g. stick-slip short of the contact: not again
-            else:
-                ev = self.contact_map.observe(
-                    z, "collision", v_used=self._stall_speed,
-                    f_measured=self._stall_peak, expected=expected, expected_gate=gate,
-                )  # fmt: skip
-                self._record(ev.index, z, (target.position, target.velocity))
-                hit = 2.0
-                self._release(ev.index, obs.t)
-        return hit
-
     def _blend_transitions(
         self, obs: Observation, target: TargetSample, cmd: Command
     ) -> tuple[Command, float]:
@@ -319,70 +282,6 @@ class AnticipatoryAVIC(ContactEvents, Controller):
             cmd = Command(force=force, torque=cmd.torque)
             self._stiffness = (1.0 - alpha) * k1 + a_c * self.k_collision + a_i * base.k_max
         return cmd, alpha
-
-    def _impactless_event(self, obs: Observation) -> None:
-        """An Algorithm 1 decision that changes the mode is an impact-less contact event."""
-        event, mode = self.base.signal("mode_event"), self.base.signal("mode")
-        if event > 0 and self._trigger_pos is not None and self.contact_map is not None:
-            if self._last_mode >= 0 and mode != self._last_mode:
-                z = self._measured(self._trigger_pos)
-                ev = self.contact_map.observe(
-                    z, "impactless", expected=self._expected(obs.t, "impactless")
-                )
-                self._record(ev.index, z, self._trigger_target)
-                for w in self._windows:
-                    if w.contact == ev.index and not w.done:
-                        w.release, w.done = min(w.release, obs.t), True
-        self._last_mode = mode
-
-    def _measured(self, position: np.ndarray) -> np.ndarray:
-        """The contact position z the robot measures when it detects a contact (§3.3: the
-        end-effector position "obtained by forward kinematics with joint positions"): the tool
-        position at the detected onset. What separates z from the true contact is then what the
-        detection chain does: the onset is found on the noisy F/T stream (the jump test's
-        latency, the tool's travel into the compliant contact meanwhile) and the tool's
-        tracking error while sliding (issue #38 item 3; the error is measured per contact as
-        ``detection_error_m_<name>``, :mod:`ccm.metrics.contacts`: 0.05-0.26 mm in the H4
-        scenes, experiments/h4.md). ``detection_noise_std`` > 0 adds seeded Gaussian noise per
-        axis on top, drawn from this trial's generator: a stand-in for the kinematic error of a
-        real arm, which the simulator's exact pose lacks (the paper configs: 5 mm)."""
-        z = np.array(position, dtype=float)
-        if self.cfg.detection_noise_std > 0.0 and self._meas_rng is not None:
-            z = z + self._meas_rng.normal(0.0, self.cfg.detection_noise_std, size=z.shape)
-        return z
-
-    def _record(
-        self, contact: int, z: np.ndarray, target: tuple[np.ndarray, np.ndarray] | None
-    ) -> None:
-        """Keep a measurement z for :meth:`report`, and the contact's ``lead``: the target's
-        offset from z across the planned motion when z was taken (``target`` = the target's
-        position and velocity then). It is where the target runs when the tool meets the
-        contact, which the next trial's p_c is found with
-        (:func:`ccm.control.adaptive.replan.plan_passes`). Along the motion the offset is the
-        tool's lag, which depends on the stiffness acting then (K* after a slow-down, the
-        base's K before one: carried over, it made every other trial meet the wall at 0.06
-        m/s, measured); it is left out, so p_c comes early rather than late."""
-        self._z.setdefault(contact, []).append(z.tolist())
-        if target is None or self.contact_map is None:
-            return
-        lead = np.asarray(target[0], dtype=float) - z
-        v = np.asarray(target[1], dtype=float)
-        speed = float(np.linalg.norm(v))
-        if speed > 1e-9:
-            lead = lead - (lead @ v) * v / speed**2
-        self.contact_map.contacts[contact].lead = lead
-
-    def _release(self, contact: int, t: float) -> None:
-        """Contact made: leave the transition controller and return to the plan's speed."""
-        for w in self._windows:
-            if w.contact == contact and not w.done:
-                w.release, w.done = min(w.release, t), True
-        self._stall_used = True  # this contact's stall is no evidence for the others
-        if contact in self._hits:
-            return
-        self._hits[contact] = t
-        if any(i == contact for i, *_ in self._slow) and self._retimed is not None:
-            self._replan(t)  # keep the clock so far; later spans only (this one is made)
 
     def report(self) -> dict[str, Any]:
         """``contacts``: per contact belief, its name, kind and source, ``mean`` [m], ``std``
