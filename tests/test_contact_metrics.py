@@ -296,7 +296,7 @@ def test_belief_metrics_from_the_controller_report() -> None:
 
 
 def test_contact_table_has_a_row_per_trial_and_believed_contact() -> None:
-    from ccm.metrics.contacts import contact_table
+    from ccm.metrics.contact_beliefs import contact_table
 
     trial = {"condition": "full", "trial": 1, "pattern_time_s": 20.0, "transition_time_s": 5.0,
              "contact_error_m_table": 0.001, "contact_std_m_table": 0.004,

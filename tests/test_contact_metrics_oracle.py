@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ccm.metrics.contacts import contact_metrics, contact_table
+from ccm.metrics.contact_beliefs import contact_table
+from ccm.metrics.contacts import contact_metrics
 from tests.test_contact_metrics import PARAMS, TABLE, drop_log
 
 #: the table's belief: before the trial 5 mm off along y (std 8 mm), after it 3 mm (4 mm);

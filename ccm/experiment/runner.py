@@ -43,7 +43,7 @@ from ccm.experiment.components import (
 from ccm.experiment.config_check import check_trial_steps, trial_duration
 from ccm.experiment.interrupts import raise_if_interrupted
 from ccm.experiment.trial import run_trial
-from ccm.metrics.contacts import contact_table
+from ccm.metrics.contact_beliefs import contact_table
 from ccm.metrics.trial import (
     check_extra_metrics,
     compute_extra_metrics,

@@ -61,53 +61,10 @@ Definitions (one trial; step k is one control step, ``t[k]`` its time, dt the me
   (the controller flags one step per event, so this is the number of events); None when the
   column is absent.
 
-Beliefs (``controller_report``, :meth:`ccm.control.base.Controller.report`, taken after the
-trial and before the controller's end-of-trial update; a controller without contact beliefs
-gives None for all of these), for every contact of the task, matched by name:
-
-* ``contact_error_m_<name>`` = ‖belief mean − the task's nominal (true) position‖ (seed A
-  Table 1 gives the error along the most significant axis; the norm is never smaller);
-* ``contact_std_m_<name>`` = the largest standard deviation along an axis of the belief (the
-  ± of Table 1);
-* ``contact_prior_error_m_<name>`` / ``contact_prior_std_m_<name>``: the same for the belief
-  the trial started from (trial 1: the noisy initial estimate, Table 1's "Initial");
-* ``approach_velocity_mps_<name>`` / ``measured_impact_force_N_<name>``: for a collision
-  whose Eq. 9 model was updated this trial, the commanded approach speed and the impact force
-  F_m the controller measured (its F/T sensor, not the truth);
-* ``n_contacts_learned``: contacts the controller added itself (first seen in a trial);
-* ``detection_error_m_<name>`` = ‖z − the task's nominal position‖ for the first contact
-  position z the controller measured for that contact in the trial (the Kalman filter's
-  measurement, seed A §3.3; issue #38 item 3: the detection chain's own error, from the F/T
-  noise, the onset test's latency, the contact's compliance and the tool's tracking error),
-  and ``detection_depth_m_<name>`` = its part along −n_c (how far past the nominal surface
-  the tool point was at the detected onset; negative short of it). None when not measured.
-
-Impact-less transitions (seed A §4.5.2, Figs 19-20), for every task contact of kind
-``impactless`` (its position: where the tool point crosses onto the new surface):
-
-* **Patch window**: the steps at which the tool point is within ``patch_window_m`` of that
-  position.
-* ``patch_peak_acc_mps2_<name>`` / ``patch_peak_jerk_mps3_<name>`` = max ‖a‖ / ‖j‖ over the
-  window, from the measured velocity through :func:`ccm.metrics.trial.derivatives` (None if the
-  tool never comes that close);
-* ``region_m_<name>`` = ``region_m`` (largest semi-axis of region C) of the controller's
-  impact-less belief nearest to that position, if one lies within ``patch_window_m`` (the
-  region it anticipates there), else None: the region size per trial of Fig. 20.
-* **Switch onset** (ground truth): in the first contiguous run of the patch window, the
-  first step at which ``truth_table_friction`` (the friction the simulator gives the table)
-  differs from its value at the run's first step: where the tool's face starts to feel the
-  new surface (with ``sim.patch_mode: footprint`` about half the tool's width before the tool
-  point crosses). Without that column: the step of the run closest to the position.
-  ``switch_onset_s_<name>`` = its time.
-* ``switch_detect_delay_s_<name>`` = from the onset to the first step of the run at which
-  Algorithm 1 decides a mode (``mode_event`` > 0) other than the ``mode`` at the onset (seed A:
-  "detected"); ``switch_detected_<name>`` = 1.0. With no such decision before the tool leaves
-  the window the delay is censored at the window's end (a lower bound on the true delay) and
-  ``switch_detected_<name>`` = 0.0. All three are None without a run with an onset, and the
-  last two None for a controller without mode detection (no ``mode`` column).
-  ``switch_known_<name>`` = 1.0 if that detecting decision took a mode the controller already
-  had (``mode_event`` = 1, Algorithm 1's known mode; seed A §4.5.2: segment 4 "recognized as a
-  mode that it had experienced before"), 0.0 if it made a new one (2); None if undetected.
+Beliefs (``contact_error_m_<name>``, ``detection_error_m_<name>``, ...) are defined in
+:mod:`ccm.metrics.contact_beliefs`; impact-less transitions (``patch_peak_acc_mps2_<name>``,
+``switch_detect_delay_s_<name>``, ...) in :mod:`ccm.metrics.contact_patches`.
+:func:`contact_metrics` returns all three families.
 
 Every value is a plain float or None, and the keys are the same every trial of a task (a
 missing onset gives None, not a missing key). ``completion_time_s``, ``peak_acc_mps2`` and
@@ -123,6 +80,8 @@ import numpy as np
 
 from ccm.core.errors import ConfigError, check_finite, check_nonneg, check_positive
 from ccm.core.filters import derivatives
+from ccm.metrics.contact_beliefs import belief_metrics
+from ccm.metrics.contact_patches import patch_metrics
 
 __all__ = ["contact_metrics", "impact_jerk", "scored_contacts"]
 
@@ -197,8 +156,8 @@ def contact_metrics(
     t = np.asarray(log["t"], dtype=float)
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     out = _impact_metrics(log, "xyz"[:dim], t, dt, contacts, settings)
-    out.update(_belief_metrics(params.get("task_contacts") or (), params.get("controller_report")))
-    out.update(_patch_metrics(log, dim, params))
+    out.update(belief_metrics(params.get("task_contacts") or (), params.get("controller_report")))
+    out.update(patch_metrics(log, dim, params))
     alpha = log.get("transition_alpha")
     out["transition_time_s"] = (
         float(np.count_nonzero(np.asarray(alpha) > 0.0) * dt) if alpha is not None else 0.0
@@ -298,155 +257,3 @@ def impact_jerk(
         float(np.sqrt(np.mean(jerk_n[union] ** 2))) if union.any() else None
     )
     return out
-
-
-def _belief_metrics(
-    task_contacts: Sequence[Mapping[str, Any]], report: Mapping[str, Any] | None
-) -> dict[str, float | None]:
-    """The belief metrics of the module docstring."""
-    beliefs = {b["name"]: b for b in (report or {}).get("contacts", [])}
-    out: dict[str, float | None] = {}
-    for c in task_contacts:
-        name = str(c["name"])
-        b = beliefs.get(name)
-        err = std = v = f = err0 = std0 = None
-        if b is not None and b.get("prior_mean") is not None:
-            err0 = float(np.linalg.norm(np.asarray(b["prior_mean"]) - np.asarray(c["position"])))
-            std0 = float(b["prior_std"])
-        if b is not None:
-            err = float(np.linalg.norm(np.asarray(b["mean"]) - np.asarray(c["position"])))
-            std = float(b["std"])
-            v = None if b.get("approach_velocity") is None else float(b["approach_velocity"])
-            f = None if b.get("impact_force") is None else float(b["impact_force"])
-        out[f"contact_error_m_{name}"] = err
-        out[f"contact_std_m_{name}"] = std
-        out[f"contact_prior_error_m_{name}"] = err0
-        out[f"contact_prior_std_m_{name}"] = std0
-        out[f"approach_velocity_mps_{name}"] = v
-        out[f"measured_impact_force_N_{name}"] = f
-        out.update(_detection_error(name, c, b))
-    learned = [b for b in beliefs.values() if b.get("source") == "observed"]
-    out["n_contacts_learned"] = float(len(learned)) if report and "contacts" in report else None
-    return out
-
-
-def _detection_error(
-    name: str, contact: Mapping[str, Any], belief: Mapping[str, Any] | None
-) -> dict[str, float | None]:
-    """``detection_error_m_<name>`` and ``detection_depth_m_<name>`` of the module docstring,
-    from the first position the controller measured for this contact in the trial."""
-    z = (belief or {}).get("measured") or []
-    err = depth = None
-    if z:
-        e = np.asarray(z[0], dtype=float) - np.asarray(contact["position"], dtype=float)
-        err = float(np.linalg.norm(e))
-        if contact.get("normal") is not None:
-            n = np.asarray(contact["normal"], dtype=float)
-            depth = float(-e @ n / np.linalg.norm(n))
-    return {f"detection_error_m_{name}": err, f"detection_depth_m_{name}": depth}
-
-
-def contact_table(trials: Sequence[Mapping[str, Any]]) -> str | None:
-    """Seed A Table 1 / §4.5.1 layout as markdown: per condition with contact beliefs, one row
-    per trial and contact (belief error and std, commanded approach speed, true and measured
-    impact force) and the trial's pattern and transition times. None if no trial has beliefs.
-    """
-    rows = []
-    for tr in trials:
-        names = [k[len("contact_error_m_") :] for k in tr if k.startswith("contact_error_m_")]
-        for n in names:
-            if tr.get(f"contact_error_m_{n}") is None:
-                continue
-            rows.append((tr, n))
-    if not rows:
-        return None
-
-    def f(v: Any, fmt: str) -> str:
-        return "–" if v is None else format(v, fmt)
-
-    lines = [
-        "| condition | trial | contact | error before [m] | std before [m] | error after [m] "
-        "| std after [m] | approach v [m/s] | impact F true [N] | F_m measured [N] "
-        "| pattern time [s] | transition time [s] |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for tr, n in rows:
-        lines.append(
-            f"| {tr['condition']} | {tr['trial']} | {n} "
-            f"| {f(tr.get(f'contact_prior_error_m_{n}'), '.4f')} "
-            f"| {f(tr.get(f'contact_prior_std_m_{n}'), '.4f')} "
-            f"| {f(tr.get(f'contact_error_m_{n}'), '.4f')} "
-            f"| {f(tr.get(f'contact_std_m_{n}'), '.4f')} "
-            f"| {f(tr.get(f'approach_velocity_mps_{n}'), '.4f')} "
-            f"| {f(tr.get(f'impact_force_N_{n}'), '.1f')} "
-            f"| {f(tr.get(f'measured_impact_force_N_{n}'), '.1f')} "
-            f"| {f(tr.get('pattern_time_s'), '.2f')} | {f(tr.get('transition_time_s'), '.2f')} |"
-        )
-    return "\n".join(lines) + "\n"
-
-
-def _patch_metrics(
-    log: Mapping[str, np.ndarray], dim: int, params: Mapping[str, Any]
-) -> dict[str, float | None]:
-    """The impact-less (patch) metrics of the module docstring."""
-    near = check_positive("metrics.patch_window_m", params.get("patch_window_m", 0.03))
-    contacts = [c for c in params.get("task_contacts") or () if c.get("kind") == "impactless"]
-    if not contacts:
-        return {}
-    axes = "xyz"[:dim]
-    t = np.asarray(log["t"], dtype=float)
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-    pos = np.column_stack([log[f"pos_{a}"] for a in axes])
-    vel = np.column_stack([log[f"vel_{a}"] for a in axes])
-    acc, jerk = derivatives(vel, dt, check_positive("metrics.lowpass_hz", params.get("lowpass_hz")))
-    acc_n, jerk_n = np.linalg.norm(acc, axis=1), np.linalg.norm(jerk, axis=1)
-    report = params.get("controller_report") or {}
-    beliefs = [b for b in report.get("contacts", []) if b.get("kind") == "impactless"]
-    out: dict[str, float | None] = {}
-    for c in contacts:
-        name, p = str(c["name"]), np.asarray(c["position"], dtype=float)
-        inside = np.linalg.norm(pos - p, axis=1) <= near
-        out[f"patch_peak_acc_mps2_{name}"] = float(acc_n[inside].max()) if inside.any() else None
-        out[f"patch_peak_jerk_mps3_{name}"] = float(jerk_n[inside].max()) if inside.any() else None
-        dist = [float(np.linalg.norm(np.asarray(b["mean"]) - p)) for b in beliefs]
-        k = int(np.argmin(dist)) if dist else -1
-        ok = k >= 0 and dist[k] <= near
-        out[f"region_m_{name}"] = float(beliefs[k]["region_m"]) if ok else None
-        gap = np.linalg.norm(pos - p, axis=1)
-        onset, delay, found, known = _switch_detection(log, t, inside, gap)
-        out[f"switch_onset_s_{name}"] = onset
-        out[f"switch_detect_delay_s_{name}"] = delay
-        out[f"switch_detected_{name}"] = found
-        out[f"switch_known_{name}"] = known
-    return out
-
-
-def _switch_detection(
-    log: Mapping[str, np.ndarray], t: np.ndarray, inside: np.ndarray, gap: np.ndarray
-) -> tuple[float | None, float | None, float | None, float | None]:
-    """(onset time, detection delay, detected, known mode) of one surface switch (module docstring);
-    ``inside``: the patch window per step, ``gap``: the tool point's distance from the switch
-    position."""
-    steps = np.flatnonzero(inside)
-    if steps.size == 0:
-        return None, None, None, None
-    ends = np.flatnonzero(np.diff(steps) > 1)
-    run = steps[: int(ends[0]) + 1] if ends.size else steps  # the first contiguous run
-    mu = log.get("truth_table_friction")
-    if mu is None:
-        o = int(run[np.argmin(gap[run])])
-    else:
-        changed = np.flatnonzero(np.abs(np.asarray(mu)[run] - float(mu[run[0]])) > 1e-9)
-        if changed.size == 0:
-            return None, None, None, None
-        o = int(run[changed[0]])
-    mode, event = log.get("mode"), log.get("mode_event")
-    if mode is None or event is None:
-        return float(t[o]), None, None, None
-    after = run[run >= o]
-    event = np.asarray(event)
-    hit = after[(event[after] > 0) & (np.asarray(mode)[after] != mode[o])]
-    if hit.size:
-        known = 1.0 if event[hit[0]] == 1 else 0.0
-        return float(t[o]), float(t[hit[0]] - t[o]), 1.0, known
-    return float(t[o]), float(t[after[-1]] - t[o]), 0.0, None
