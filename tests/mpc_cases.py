@@ -19,7 +19,7 @@ import pytest
 from ccm.control.mpc.admittance import system_matrices
 from ccm.control.mpc.problem import GPMPCProblem, MPCSolution
 from ccm.control.mpc.settings import Weights
-from ccm.learn.gp.gp_force import GPForceModels
+from ccm.learn.gp.gp_force_models import GPForceModels
 
 TS, H = 0.01, 5
 # Generous f^r bound and rate limit unless a test says otherwise, so that the closed-form

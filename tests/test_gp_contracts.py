@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from ccm.core.errors import ConfigError
-from ccm.learn.gp.gp_force import GPForceModels
+from ccm.learn.gp.gp_force_models import GPForceModels
 from ccm.learn.gp.svm_gp import ModalGPDynamics
 from tests.refusals import refusal
 from tests.test_gp_force import _contact_data

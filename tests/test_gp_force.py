@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from ccm.core.errors import ConfigError
-from ccm.learn.gp.gp_force import GPForceModel, GPForceModels
+from ccm.learn.gp.gp_force import GPForceModel
+from ccm.learn.gp.gp_force_models import GPForceModels
 
 K_CONTACT = 45_000.0  # N/m, seed B's 45 N/mm
 X_CONTACT = 0.3

@@ -17,7 +17,7 @@ from ccm.control.mpc.problem import GPMPCProblem, _ipopt_options
 from ccm.control.mpc.settings import MPCSettings, Weights
 from ccm.core.errors import ConfigError
 from ccm.core.types import Observation, TargetSample
-from ccm.learn.gp.gp_force import GPForceModels
+from ccm.learn.gp.gp_force_models import GPForceModels
 from tests.mpc_cases import wall
 from tests.refusals import refusal
 
@@ -440,7 +440,7 @@ def test_each_mode_is_fit_on_max_points_spread_over_its_demonstration() -> None:
     """Seed B §3.1.1's GP per mode, fit on ``max_points`` rows spread evenly over the
     demonstration, its first and last row included: the same predictions as a GP fit by hand
     on those rows."""
-    from ccm.learn.gp.gp_force import GPForceModels
+    from ccm.learn.gp.gp_force_models import GPForceModels
 
     ctrl = _small_gp_mpc(max_points=10)
     _demonstrate(ctrl)

@@ -98,7 +98,7 @@ def test_gp_mpc_compiled_same_solution_along_a_closed_loop(tmp_path, monkeypatch
     from ccm.control.mpc.admittance import system_matrices
     from ccm.control.mpc.problem import GPMPCProblem
     from ccm.control.mpc.settings import Weights
-    from ccm.learn.gp.gp_force import GPForceModels
+    from ccm.learn.gp.gp_force_models import GPForceModels
 
     rng = np.random.default_rng(3)
     n, pts = 2, 8

@@ -86,7 +86,7 @@ TRACE_COST: dict[str, Any] = {"weights": {"pos_var": 1.0e6}}
 
 def synthetic_gp(seed: int, wall: float = 0.0, n_points: int = N_POINTS) -> Any:
     """GP force models fitted to noisy samples of the wall (see the module docstring)."""
-    from ccm.learn.gp.gp_force import GPForceModels
+    from ccm.learn.gp.gp_force_models import GPForceModels
 
     rng = np.random.default_rng(seed)
     X = rng.uniform(-0.02, 0.02, (n_points, N_DIM))

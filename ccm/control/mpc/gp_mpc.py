@@ -218,7 +218,7 @@ class GPMPC(Controller):
     def _fit(self) -> None:
         """Fit one GP set per mode from the demonstrations and build Eq. 13 (seed B §3.1.1)."""
         from ccm.control.mpc.problem import GPMPCProblem
-        from ccm.learn.gp.gp_force import GPForceModels
+        from ccm.learn.gp.gp_force_models import GPForceModels
 
         self.models = []
         for m, rows in enumerate(self._data):
