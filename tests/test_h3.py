@@ -180,7 +180,7 @@ def test_gp_scores_of_f_y_after_the_wall_contact() -> None:
 def test_forward_model_horizon_must_be_one_h3_step() -> None:
     from types import SimpleNamespace
 
-    from ccm.analyses.h3 import _check_horizon
+    from ccm.analyses.h3_variants import _check_horizon
     from ccm.core.errors import ConfigError
 
     _check_horizon(SimpleNamespace(horizon_s=0.01), 0.01 + 1e-12)
@@ -193,7 +193,7 @@ def test_a_copy_of_the_trained_incremental_model_predicts_as_one_trained_anew() 
     one training): the copy's predictions equal those of a model trained anew, bit for bit."""
     import numpy as np
 
-    from ccm.analyses.h3 import _igmm, _igmm_copy, _igmm_train
+    from ccm.analyses.h3_variants import _igmm, _igmm_copy, _igmm_train
 
     rng = np.random.default_rng(0)
 
@@ -217,7 +217,7 @@ def test_a_copy_of_the_trained_incremental_model_predicts_as_one_trained_anew() 
 def test_train_spread_is_the_std_across_trials() -> None:
     import numpy as np
 
-    from ccm.analyses.h3 import train_spread
+    from ccm.analyses.h3_variants import train_spread
 
     q = np.zeros((5, 7))
     trials = [{"q": q + 0.01}, {"q": q - 0.01}, {"q": np.zeros((6, 7))}]  # cut to 5 steps
