@@ -261,7 +261,7 @@ def test_run_info_reference_reads_the_wall_clock_facts(tmp_path: Path) -> None:
     collect; without the file the claim is not measured."""
     import json
 
-    from ccm.reporting.report import collect
+    from ccm.reporting.report_runs import collect
 
     c = parse_claim(
         {**LESS, "compare": "within", "value": 3300.0, "tolerance": 0.5, "b": None,

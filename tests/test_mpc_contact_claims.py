@@ -14,7 +14,7 @@ from ccm.core.errors import ConfigError
 from ccm.metrics.mpc import gp_mpc_metrics
 from ccm.reporting.claims import evaluate, load_claims, parse_claim
 from ccm.reporting.paper import PAPER_EXPERIMENTS
-from ccm.reporting.report import collect, with_run_info
+from ccm.reporting.report_runs import collect, with_run_info
 
 CLAIMS = Path(__file__).resolve().parents[1] / "experiments" / "claims.yaml"
 DT = 0.001

@@ -149,7 +149,7 @@ def test_records_moved_aside_by_force_are_not_pooled(sweep: Path) -> None:
 
 
 def test_missing_metric_values_are_counted_not_hidden(sweep: Path) -> None:
-    from ccm.reporting.report import collect
+    from ccm.reporting.report_runs import collect
 
     (sweep / "2" / "summary.json").write_text(json.dumps(
         {"experiment": "e", "status": "ok", "seed": 2, "trials": [],
@@ -177,7 +177,7 @@ def test_a_report_with_no_usable_run_exits_non_zero(
 
 
 def test_metrics_table_means_over_seeds(sweep: Path) -> None:
-    from ccm.reporting.report import collect
+    from ccm.reporting.report_runs import collect
 
     t = metrics_table(collect(sweep))
     row = t[(t.condition == "x") & (t.metric == "m")].iloc[0]

@@ -4,7 +4,7 @@
 different engines (``ccm paper`` with its default ``pybullet3d``, and ``ccm paper --sim
 mujoco3d``). Each claim of ``experiments/claims.yaml`` whose experiment runs on a 3-D engine
 is judged on each directory's runs exactly as ``ccm report`` judges it (the same screening
-of runs, :func:`ccm.reporting.report.usable_runs`, and :func:`ccm.reporting.claims.evaluate`);
+of runs, :func:`ccm.reporting.report_runs.usable_runs`, and :func:`ccm.reporting.claims.evaluate`);
 the table has one column per engine and marks the claims whose verdict differs. Written to
 ``B/cross_engine.md`` and printed.
 """
@@ -17,7 +17,8 @@ from pathlib import Path
 from ccm.core.errors import ConfigError
 from ccm.reporting.claims import Verdict, evaluate, load_claims
 from ccm.reporting.paper import THREE_D_ENGINES, experiment_sim
-from ccm.reporting.report import DEFAULT_CLAIMS, usable_runs
+from ccm.reporting.report import DEFAULT_CLAIMS
+from ccm.reporting.report_runs import usable_runs
 
 
 def engine_of(root: Path) -> str:

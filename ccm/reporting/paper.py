@@ -38,8 +38,8 @@ from ccm.core.records import read_json_object, write_json_atomic
 from ccm.experiment.config_check import check_output_dir
 from ccm.experiment.user_configs import config_dir, group_options
 from ccm.plots.redraw import draw_many
-from ccm.reporting.report import by_seed, collect
 from ccm.reporting.report import main as report
+from ccm.reporting.report_runs import by_seed, collect
 
 # the paper experiments, longest first (job-seconds measured 2026-12-01 on 2 cores, for
 # scheduling only): h3 5 x 380, h1_adaptive_control 10 x ~95, mpc_contact 5 x 100 (each of its
@@ -92,7 +92,7 @@ def trial_loop(name: str) -> bool:
 
 def draw_shown_figures(out: Path, names: Sequence[str], lanes: int) -> dict[str, float]:
     """Draw the figures of the runs the report shows (each trial-loop experiment's lowest
-    seed, :func:`ccm.reporting.report.by_seed`) that have none yet, ``lanes`` processes at a
+    seed, :func:`ccm.reporting.report_runs.by_seed`) that have none yet, ``lanes`` processes at a
     time; ``{"wall_s", "cpu_s"}`` (the workers' CPU included)."""
     t0, cpu0 = time.perf_counter(), _cpu_with_children()
     runs = collect(out)

@@ -1,7 +1,7 @@
 """Which runs a report may pool, and which it must set aside (issue #19).
 
-:func:`ccm.reporting.report.collect` reads every run under a directory. Pooling all of them can
-mislead:
+:func:`ccm.reporting.report_runs.collect` reads every run under a directory. Pooling all of
+them can mislead:
 
 * **duplicates** — the same experiment, seed and task run twice (a sweep re-run into another
   directory, a copied run) would count as two seeds. The first run by path is kept, preferring
