@@ -5,6 +5,7 @@ Seed A (Sidhik et al.) ran its 2D experiments in a Box2D world with noiseless me
 task-space force, the controller command ``u_t`` of seed A Eq. 1. The robot's own gravity
 compensation (the ``H_t`` term of Eq. 1) is done here, so a controller commands only the
 task-space force.
+The Chipmunk space (static scene and EE body) is built by :mod:`ccm.sim.pymunk.space`.
 
 Modelling choices:
 
@@ -59,6 +60,7 @@ from ccm.sim.pymunk._raw import RawBody
 from ccm.sim.pymunk.config import Pymunk2DConfig
 from ccm.sim.pymunk.hri_forces import HRIForces
 from ccm.sim.pymunk.scene import SceneSpec
+from ccm.sim.pymunk.space import build_space
 from ccm.sim.sensor import FTSensor
 from ccm.sim.start_pose import check_start_2d
 
@@ -164,7 +166,7 @@ class Pymunk2D(Simulator):
 
     def reset(self, seed: int | None = None) -> tuple[Observation, StepInfo]:
         """Rebuild the space, put the EE at ``start`` at rest, seed the sensor noise."""
-        self._space, self._body = self._build_space()
+        self._space, self._body = build_space(self.scene, self.config, self.start)
         self._raw = RawBody(self._space, self._body)
         self._state: tuple[float, ...] | None = None
         self._visc = (-1, 0.0)
@@ -264,53 +266,6 @@ class Pymunk2D(Simulator):
         self._body = None
 
     # ------------------------------------------------------------------ internals
-
-    def _build_space(self) -> tuple[pymunk.Space, pymunk.Body]:
-        """A fresh space with the static scene and the EE at ``start`` at rest."""
-        cfg, scene = self.config, self.scene
-        space = pymunk.Space()
-        space.iterations = cfg.iterations
-        space.collision_slop = cfg.collision_slop
-        space.gravity = (0.0, -scene.gravity)
-        static = space.static_body
-        for surf in scene.surfaces:
-            ax, ay = surf.a
-            ux, uy = (surf.b[0] - ax) / surf.length, (surf.b[1] - ay) / surf.length
-            pieces = []
-            for s0, s1, mu in surf.pieces():
-                seg = pymunk.Segment(
-                    static, (ax + ux * s0, ay + uy * s0), (ax + ux * s1, ay + uy * s1), surf.radius
-                )
-                seg.friction = mu
-                seg.elasticity = surf.restitution
-                pieces.append(seg)
-            # Tell Chipmunk the pieces form one line so the EE does not catch on the joints.
-            # A piece's own endpoint as neighbour means "no neighbour" (zero tangent).
-            for i, seg in enumerate(pieces):
-                last = i + 1 == len(pieces)
-                seg.set_neighbors(
-                    pieces[i - 1].a if i else seg.a, seg.b if last else pieces[i + 1].b
-                )
-            space.add(*pieces)
-        for box in scene.boxes:
-            (cx, cy), (w, h) = box.center, box.size
-            verts = [(cx - w / 2, cy - h / 2), (cx + w / 2, cy - h / 2),
-                     (cx + w / 2, cy + h / 2), (cx - w / 2, cy + h / 2)]  # fmt: skip
-            poly = pymunk.Poly(static, verts)
-            poly.friction = box.friction
-            poly.elasticity = box.restitution
-            space.add(poly)
-        ee = scene.ee
-        moment = pymunk.moment_for_box(ee.mass, ee.size) if ee.rotate else float("inf")
-        body = pymunk.Body(ee.mass, moment)
-        body.position = (self.start[0], self.start[1])
-        body.angle = self.start[2]
-        shape = pymunk.Poly.create_box(body, ee.size)
-        # Multiplicative combination: the surface's friction/restitution become effective.
-        shape.friction = 1.0
-        shape.elasticity = 1.0
-        space.add(body, shape)
-        return space, body
 
     def _attached(self) -> tuple[list[bool], list[tuple[float, ...]], float, float, float]:
         """Whether each spring is attached at the current physics step, the attached springs,
