@@ -13,6 +13,7 @@ import pytest
 from scipy.integrate import quad
 
 from ccm.core.errors import ConfigError
+from ccm.tasks.motion_pattern import MotionPattern
 from ccm.tasks.retiming import RetimedPattern, TimeWarp
 from ccm.tasks.smooth_step import (
     blend,
@@ -22,7 +23,7 @@ from ccm.tasks.smooth_step import (
     smooth_step_derivs,
     smooth_step_integral,
 )
-from ccm.tasks.trajectory import MotionPattern, build_pattern
+from ccm.tasks.trajectory import build_pattern
 
 # Largest |σ'''| on (0, 1) (at τ ≈ 0.135, from a 2·10⁶-point grid); σ⁗ and σ⁽⁵⁾ stay below
 # 2.3e3 and 7.8e4. These bound the finite-difference errors below.

@@ -11,8 +11,9 @@ import pytest
 
 from ccm.core.errors import ConfigError
 from ccm.core.types import TargetSample
+from ccm.tasks.motion_pattern import MotionPattern
 from ccm.tasks.segments import ArcSegment, HoldSegment, LineSegment, min_jerk
-from ccm.tasks.trajectory import MotionPattern, build_pattern
+from ccm.tasks.trajectory import build_pattern
 
 EXACT = 1e-12
 # Central differences with step H: truncation error ~ H² · (third derivative) and rounding

@@ -1,4 +1,4 @@
-"""Numba kernels behind :class:`ccm.tasks.trajectory.MotionPattern.sample` (the per-step path).
+"""Numba kernels behind :meth:`ccm.tasks.motion_pattern.MotionPattern.sample` (the per-step path).
 
 The readable definitions stay in :mod:`ccm.tasks.segments` (``min_jerk`` and each
 segment's ``_coeffs``); the kernels here repeat the same arithmetic, operation for operation,

@@ -17,13 +17,13 @@ import numpy as np
 
 from ccm.core.errors import ConfigError, check_finite, check_nonneg, check_positive
 from ccm.core.types import TargetSample
+from ccm.tasks.motion_pattern import MotionPattern, reusable_sample
 from ccm.tasks.smooth_step import (
     integral_scalar,
     sigma_scalar,
     smooth_step_derivs,
     smooth_step_integral,
 )
-from ccm.tasks.trajectory import MotionPattern, reusable_sample
 
 
 def _parse_change(key: str, change: Any) -> tuple[float, float, float]:

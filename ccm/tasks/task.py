@@ -16,7 +16,8 @@ import numpy as np
 from omegaconf import DictConfig
 
 from ccm.core.errors import ConfigError, check_choice, check_keys, check_vector, to_plain
-from ccm.tasks.trajectory import MotionPattern, build_pattern
+from ccm.tasks.motion_pattern import MotionPattern
+from ccm.tasks.trajectory import build_pattern
 
 __all__ = ["CONTACT_KINDS", "TASK_KEYS", "Task", "load_task"]
 
