@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 run: setup  ## the default experiment, $(EXP) (extra Hydra overrides: make run ARGS="seed=3")
 	$(BIN)/ccm run experiment=$(EXP) $(ARGS)
 
-# pytest workers (pytest-xdist): the suite takes ~7 min on two cores (7 min 10 s, 2026-12-06)
+# pytest workers (pytest-xdist): the suite takes ~8 min on two cores (7 min 32 s, 2026-12-07)
 TEST_WORKERS ?= 2
 
 test: setup browser  ## the default test suite (slow-marked checks excluded), on TEST_WORKERS cores

@@ -5,27 +5,15 @@ visible in it. ``make test`` installs Debian's chromium where it can (``make bro
 from __future__ import annotations
 
 import json
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from ccm.reporting.report import main
+from tests.browser import chromium, needs_chromium
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-pytestmark = pytest.mark.skipif(
-    CHROMIUM is None, reason="chromium not installed (`make browser` installs it as root)"
-)
-
-# flags for a closed network: without the background-networking ones Chromium keeps trying
-# to reach Google's hosts at start-up
-FLAGS = (
-    "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-    "--hide-scrollbars",
-)  # fmt: skip
+pytestmark = needs_chromium
 CLAIMS = """claims:
   - {id: render-claim, paper: seed_b, source: "Fig. 6", statement: "x below y",
      paper_value: "q", experiment: e, compare: less_than, a: {condition: x, metric: m},
@@ -47,12 +35,6 @@ def _red_figure(path: Path) -> None:
     plt.close(fig)
 
 
-def _chromium(tmp_path: Path, *args: str) -> subprocess.CompletedProcess:
-    profile = tmp_path / "profile"
-    cmd = [str(CHROMIUM), *FLAGS, f"--user-data-dir={profile}", *args]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
-
-
 @pytest.fixture
 def report(tmp_path: Path) -> Path:
     root = tmp_path / "multirun"
@@ -71,7 +53,7 @@ def report(tmp_path: Path) -> Path:
 
 def test_report_html_renders_in_headless_chromium(report: Path, tmp_path: Path) -> None:
     shot = tmp_path / "report.png"
-    res = _chromium(tmp_path, f"--screenshot={shot}", "--window-size=1200,1400", report.as_uri())
+    res = chromium(tmp_path, f"--screenshot={shot}", "--window-size=1200,1400", report.as_uri())
     assert res.returncode == 0 and shot.is_file(), res.stderr[-2000:]
     import matplotlib.image as mpimg
 
@@ -85,7 +67,7 @@ def test_report_html_renders_in_headless_chromium(report: Path, tmp_path: Path) 
 
 
 def test_report_dom_shows_the_claim_and_verdict(report: Path, tmp_path: Path) -> None:
-    res = _chromium(tmp_path, "--dump-dom", report.as_uri())
+    res = chromium(tmp_path, "--dump-dom", report.as_uri())
     assert res.returncode == 0, res.stderr[-2000:]
     dom = res.stdout
     assert "render-claim" in dom and "reproduced" in dom
