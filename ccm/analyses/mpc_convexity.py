@@ -77,6 +77,7 @@ from ccm.core.errors import (
     config_block,
 )
 from ccm.core.records import save_figure, write_json_atomic
+from ccm.plots.style import condition_style, merged_legend
 
 _KEYS = ("ts", "mass", "damping", "sigma_x", "sigma_v", "q", "sigma_f_range", "n_points",
          "typical_sigma_f", "mass_range", "damping_range", "n_phi",
@@ -310,15 +311,16 @@ def _figure(path: Path, curves: Mapping[str, np.ndarray], s: Mapping[str, Any]) 
     path.parent.mkdir(parents=True, exist_ok=True)
     fig, axs = plt.subplots(1, 2, figsize=(10, 4), sharey=False)
     for ax, obj in zip(axs, OBJECTIVES, strict=True):
-        for integ in INTEGRATORS:
-            ax.plot(curves["sigma_f"], curves[f"{integ}/{obj}/rel"], label=integ)
+        for i, integ in enumerate(INTEGRATORS):  # own styles: the curves coincide at 0 and -1
+            ax.plot(curves["sigma_f"], curves[f"{integ}/{obj}/rel"], label=integ,
+                    **condition_style(i))  # fmt: skip
         ax.axhline(0.0, color="gray", lw=0.8)
         ax.set_xscale("log")
         ax.set_xlabel("GP force variance Σ_f [N²]")
         ax.set_ylabel("λ_min / max|λ| of the Hessian over (M, D) [-]")
         ax.set_title("Tr(QΣ⁺)" if obj == "trace" else "ln det(QΣ⁺)")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+    merged_legend(axs[-1], axs)
     fig.suptitle(
         "Convexity over (M, D) of the one-step covariance cost (seed B Fig. 4; > 0: convex)\n"
         f"single point: M {s['mass']:g} kg, D {s['damping']:g} N s/m, prior std "

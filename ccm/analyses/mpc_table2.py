@@ -70,6 +70,7 @@ from ccm.core.records import save_figure, write_json_atomic
 from ccm.experiment.components import Components, check_experiment, plan_experiment, trial_seed
 from ccm.experiment.config_check import trial_duration
 from ccm.experiment.trial import run_trial
+from ccm.plots.style import outside_legend
 
 _KEYS = ("baseline", "rows", "bootstrap", "ratios", "seed_b_hz")
 _ROW_KEYS = ("mpc", "demo_modes", "belief")
@@ -378,7 +379,7 @@ def figure(path: Path, info: Mapping[str, Any], names: Sequence[str]) -> None:
         ax.set_xticks(x, [n.replace("_", " ") for n in names], rotation=20)
         ax.set_xlabel("Table 2 row (each feature alone on the baseline)")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        outside_legend(ax, "above", fontsize=8, ncol=2)
     fig.suptitle(
         "Seed B Table 2 by replay of a recorded rail trial (error bars: 95 % block bootstrap)"
     )
