@@ -75,7 +75,7 @@ $(DOCS_STAMP): $(STAMP)
 	touch $(DOCS_STAMP)
 
 docs: setup $(DOCS_STAMP)  ## the documentation site into site/ (open site/index.html)
-	$(BIN)/mkdocs build --strict -d site
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict -d site  # the theme's end-of-life banner off (docs/index.md)
 
 mutation: setup  ## mutation testing of the equations' packages (issue #39; not in CI; ARGS=target ...)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check 'mutmut==3.8.1'
