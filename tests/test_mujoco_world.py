@@ -40,9 +40,11 @@ WALL = {"center": [0.75, 0.0, 0.2], "size": [0.02, 0.4, 0.2], "friction": 0.9}
 
 
 def _world(mode: str, k: float = 1.0e4, c: float = 100.0, x: float = 0.4, mass: float = 1.0,
-           mapped: float = 1.0):  # fmt: skip
+           mapped: float = 1.0, impratio: float | None = None):  # fmt: skip
     """A model with the scene, its contacts mapped for contact mass ``mapped`` [kg], and a
-    free box of ``mass`` resting (4 mm above) the table at x."""
+    free box of ``mass`` resting (4 mm above) the table at x; with ``impratio``, the box
+    meets the world through the backend's contact pairs (:func:`add_pairs`) instead of
+    MuJoCo's automatic contacts."""
     scene = Scene3D.from_mapping({"table": TABLE, "boxes": [WALL]})
     spec = mujoco.MjSpec()
     spec.option.timestep = 0.001
@@ -50,8 +52,11 @@ def _world(mode: str, k: float = 1.0e4, c: float = 100.0, x: float = 0.4, mass: 
     world = add_world(spec, scene, mode, k, c, mapped)
     body = spec.worldbody.add_body(name="probe", pos=[x, 0.0, 0.1 + 0.02 + 0.004])
     body.add_freejoint()
-    body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02] * 3, mass=mass,
-                  friction=[1, 0, 0], **contact_params(k, c, mapped))  # fmt: skip
+    paired = {"contype": 0, "conaffinity": 0} if impratio is not None else {}
+    body.add_geom(name="probe", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02] * 3, mass=mass,
+                  friction=[1, 0, 0], **contact_params(k, c, mapped), **paired)  # fmt: skip
+    if impratio is not None:
+        add_pairs(spec, world, ["probe"], k, c, mapped, impratio)
     model = spec.compile()
     return model, mujoco.MjData(model), world
 
@@ -142,19 +147,8 @@ def test_sliding_lifts_the_face_by_the_cones_coupling(impratio: float) -> None:
     :func:`add_pairs`, the box sinks r₀ (1 + μ_r²) − μ b_f v / k, with b_f = b / impratio and
     μ_r² = μ² / impratio (module docstring): 55 µm of 245 at impratio 1; 243 at 100."""
     k, b, v, mu = 1.0e4, 100.0, 0.1, 0.2
-    scene = Scene3D.from_mapping({"table": TABLE})
-    spec = mujoco.MjSpec()
-    spec.option.timestep = 0.001
-    spec.option.gravity = [0.0, 0.0, -9.81]
-    world = add_world(spec, scene, "friction_map", k, b, 1.0)
-    body = spec.worldbody.add_body(name="probe", pos=[0.25, 0.0, 0.1 + 0.02 + 2e-4])
-    body.add_freejoint()
-    body.add_geom(name="probe", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02] * 3, mass=1.0,
-                  contype=0, conaffinity=0)  # fmt: skip
-    add_pairs(spec, world, ["probe"], k, b, 1.0, impratio)
-    model = spec.compile()
-    data = mujoco.MjData(model)
-    for _ in range(1000):
+    model, data, _ = _world("friction_map", k=k, c=b, x=0.25, impratio=impratio)
+    for _ in range(3000):
         mujoco.mj_step(model, data)
     rest = 0.12 - data.qpos[2]
     assert rest == pytest.approx(9.81 / (4 * k), rel=1e-3)

@@ -29,12 +29,12 @@ the contact settings, each measured (``tests/test_mujoco_world.py``):
   b ≈ 250 /s (C = 600 N s/m on the backend's contact mass: force std 2.1 N; 4.7 N at C =
   1000) and not at 126 /s (``configs/sim/mujoco3d.yaml`` has the numbers behind the
   backend's default).
-* **The surface's friction.** MuJoCo takes the larger friction of two geoms, or the one of
-  the geom with the higher ``priority``: static geoms get priority 1, so a contact has the
-  surface's coefficient (and its ``solref``), as PyBullet's multiplication by the tool's 1
-  gives. MuJoCo's friction is soft: below μ N a pushed body creeps (mm/s) rather than
-  sticks, and sliding it passes a little less than μ N; the PyBullet backend's Coulomb
-  friction sticks.
+* **The surface's friction.** A contact pair (:func:`add_pairs`) carries the static geom's
+  coefficient, as PyBullet's multiplication by the tool's 1 gives; for MuJoCo's automatic
+  contacts (a free body in the tests) static geoms get ``priority`` 1, so those too take the
+  surface's coefficient and ``solref`` rather than the larger of the two. MuJoCo's friction
+  is soft: below μ N a pushed body creeps (mm/s) rather than sticks, and sliding it passes a
+  little less than μ N; the PyBullet backend's Coulomb friction sticks.
 * **The cone couples friction into the normal force.** In MuJoCo's soft contact a sliding
   contact sits on the elliptic cone's surface, where the normal force is
   ``m (k r + b v_n + μ b_f |v_t|) / (1 + μ_r²)`` (MuJoCo's ``mj_constraintUpdate``, middle
